@@ -1,0 +1,1 @@
+"""Command-line entry points (installed as ``vade_replay.cli``): parsing, progress, exit codes."""

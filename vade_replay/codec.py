@@ -1,0 +1,144 @@
+"""Messages as JSON: deterministic encoding, exact decoding, one schema per message type.
+
+``json`` writes floats with ``repr``, the shortest text that reads back to the same
+float64, so a decoded recording holds exactly the numbers that were simulated. Keys are
+sorted and separators fixed, so equal values give equal bytes and a replay can compare
+bytes first and walk the structure only where they differ.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+from . import events as ev
+from .errors import RecordingError
+from .frames import DeviceSample, FrameRecord, PartSnapshot, TrackerFrame
+
+TRACKER_TOPIC = "/tracker"
+PARTS_TOPIC = "/parts"
+FOXGLOVE_TOPIC = "/foxglove/transforms"
+EVENT_TOPIC_PREFIX = "/events/"
+
+# topic -> (schema name, schema file in schemas/)
+CHANNELS = {
+    TRACKER_TOPIC: ("vade.TrackerFrame", "messages/TrackerFrame.schema.json"),
+    PARTS_TOPIC: ("vade.PartPoses", "messages/PartPoses.schema.json"),
+    FOXGLOVE_TOPIC: ("foxglove.FrameTransforms", "messages/foxglove.FrameTransforms.schema.json"),
+}
+for _kind in sorted(ev.REGISTRY):
+    CHANNELS[EVENT_TOPIC_PREFIX + _kind] = (f"vade.{_kind}", f"events/{_kind}.schema.json")
+
+DERIVED_TOPICS = tuple(t for t in CHANNELS if t != TRACKER_TOPIC)
+
+
+def dumps(value: dict) -> bytes:
+    return json.dumps(value, sort_keys=True, separators=(",", ":"), allow_nan=False).encode()
+
+
+def loads(data: bytes, *, topic: str, frame: int | None = None) -> dict:
+    try:
+        value = json.loads(data)
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise RecordingError(f"message on {topic} is not JSON: {exc}", frame=frame) from None
+    if not isinstance(value, dict):
+        raise RecordingError(f"message on {topic} is not a JSON object", frame=frame)
+    return value
+
+
+def encode_tracker(frame: TrackerFrame) -> dict:
+    return {
+        "frame": frame.frame,
+        "time_ns": frame.time_ns,
+        "devices": {name: {"position": list(s.position), "xyzw": list(s.rotation_xyzw),
+                           "grip": s.grip}
+                    for name, s in frame.devices},
+    }
+
+
+def _vec(value, n: int, *, topic: str, field: str, frame: int | None) -> tuple:
+    if not (isinstance(value, list) and len(value) == n and
+            all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                for v in value)):
+        raise RecordingError(f"{field} must be {n} finite numbers, got {value!r}",
+                             field=f"{topic} {field}", frame=frame)
+    return tuple(float(v) for v in value)
+
+
+def decode_tracker(data: bytes) -> TrackerFrame:
+    """A recorded tracker frame; a malformed one raises ``RecordingError`` naming the field."""
+    value = loads(data, topic=TRACKER_TOPIC)
+    frame = value.get("frame")
+    if not isinstance(frame, int) or not isinstance(value.get("time_ns"), int):
+        raise RecordingError("tracker message lacks integer frame/time_ns",
+                             field=TRACKER_TOPIC, frame=frame if isinstance(frame, int) else None)
+    devices = value.get("devices")
+    if not isinstance(devices, dict):
+        raise RecordingError("tracker message lacks devices", field=TRACKER_TOPIC, frame=frame)
+    samples = []
+    for name in sorted(devices):
+        d = devices[name]
+        if not isinstance(d, dict):
+            raise RecordingError(f"device {name} is not an object", field=TRACKER_TOPIC,
+                                 frame=frame)
+        grip = d.get("grip")
+        if grip is not None and not isinstance(grip, bool):
+            raise RecordingError(f"{name}.grip must be true, false or null",
+                                 field=f"{TRACKER_TOPIC} {name}.grip", frame=frame)
+        samples.append((name, DeviceSample(
+            _vec(d.get("position"), 3, topic=TRACKER_TOPIC, field=f"{name}.position", frame=frame),
+            _vec(d.get("xyzw"), 4, topic=TRACKER_TOPIC, field=f"{name}.xyzw", frame=frame),
+            grip)))
+    return TrackerFrame(frame, value["time_ns"], tuple(samples))
+
+
+def _snapshot(s: PartSnapshot) -> dict:
+    return {"name": s.name, "mode": s.mode, "position": list(s.position),
+            "xyzw": list(s.rotation_xyzw), "linear_velocity": list(s.linear_velocity),
+            "angular_velocity": list(s.angular_velocity)}
+
+
+def encode_parts(record: FrameRecord) -> dict:
+    return {"frame": record.frame, "time_ns": record.time_ns,
+            "base": _snapshot(record.base) if record.base else None,
+            "parts": [_snapshot(p) for p in record.parts]}
+
+
+def encode_foxglove(record: FrameRecord) -> dict:
+    sec, nsec = divmod(record.time_ns, 10**9)
+    items = ([record.base] if record.base else []) + list(record.parts)
+    return {"transforms": [
+        {"timestamp": {"sec": sec, "nsec": nsec}, "parent_frame_id": "world",
+         "child_frame_id": s.name,
+         "translation": {"x": s.position[0], "y": s.position[1], "z": s.position[2]},
+         "rotation": {"x": s.rotation_xyzw[0], "y": s.rotation_xyzw[1],
+                      "z": s.rotation_xyzw[2], "w": s.rotation_xyzw[3]}}
+        for s in items]}
+
+
+def derived_messages(record: FrameRecord) -> list[tuple[str, bytes]]:
+    """Every derived message of a frame, in the order they are written."""
+    out = [(PARTS_TOPIC, dumps(encode_parts(record))),
+           (FOXGLOVE_TOPIC, dumps(encode_foxglove(record)))]
+    for event in record.events:
+        out.append((EVENT_TOPIC_PREFIX + event.kind, dumps(ev.to_dict(event))))
+    return out
+
+
+def decode_parts(data: bytes, *, frame: int | None = None) -> tuple[PartSnapshot | None,
+                                                                    tuple[PartSnapshot, ...]]:
+    value = loads(data, topic=PARTS_TOPIC, frame=frame)
+
+    def snap(d: dict) -> PartSnapshot:
+        return PartSnapshot(d["name"], d["mode"], tuple(d["position"]), tuple(d["xyzw"]),
+                            tuple(d["linear_velocity"]), tuple(d["angular_velocity"]))
+    try:
+        base = snap(value["base"]) if value.get("base") else None
+        return base, tuple(snap(p) for p in value["parts"])
+    except (KeyError, TypeError) as exc:
+        raise RecordingError(f"malformed part poses: {exc}", field=PARTS_TOPIC, frame=frame) \
+            from None
+
+
+def decode_event(topic: str, data: bytes, *, frame: int | None = None) -> ev.Event:
+    return ev.from_dict(loads(data, topic=topic, frame=frame), frame=frame)

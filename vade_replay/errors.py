@@ -1,0 +1,46 @@
+"""One root error with a few subclasses that carry where the problem is.
+
+The CLI turns any ``VadeError`` into one line on stderr and exit code 2.
+"""
+
+from __future__ import annotations
+
+
+class VadeError(Exception):
+    """Root of every error a user can cause (bad files, bad fields, bad recordings)."""
+
+    def __init__(self, message: str, *, file: str | None = None, field: str | None = None,
+                 frame: int | None = None, value: object = None) -> None:
+        self.message = message
+        self.file = file
+        self.field = field
+        self.frame = frame
+        self.value = value
+        super().__init__(self.describe())
+
+    def describe(self) -> str:
+        where = []
+        if self.file:
+            where.append(str(self.file))
+        if self.field:
+            where.append(f"field {self.field}")
+        if self.frame is not None:
+            where.append(f"frame {self.frame}")
+        prefix = ": ".join(where)
+        return f"{prefix}: {self.message}" if prefix else self.message
+
+
+class SessionError(VadeError):
+    """A session file, mesh, mass-property report or tracker log that cannot be used."""
+
+
+class RecordingError(VadeError):
+    """An MCAP recording that cannot be read or replayed."""
+
+
+class ConfigError(VadeError):
+    """A bad command-line override (``--set``) or physics parameter."""
+
+
+class TransitionRefused(VadeError):
+    """A mode transition that the transition table does not allow or that is not built yet."""

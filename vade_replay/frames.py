@@ -1,0 +1,67 @@
+"""What one frame of a session looks like once it has been simulated or read back.
+
+These records are the hand-off between the simulator, the recording and every
+consumer (replay check, rerun review, analysis). They hold plain Python values
+(floats, tuples, strings) so that they encode to JSON exactly and compare with ``==``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+Vec3 = tuple[float, float, float]
+Quat = tuple[float, float, float, float]  # x, y, z, w
+
+
+@dataclass(frozen=True, slots=True)
+class DeviceSample:
+    """One tracker sample: a pose in world coordinates (metres) and, for gloves, the grip."""
+
+    position: Vec3
+    rotation_xyzw: Quat
+    grip: bool | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class TrackerFrame:
+    """All tracker inputs of one frame: the only thing a replay reads to re-run a session."""
+
+    frame: int
+    time_ns: int
+    devices: tuple[tuple[str, DeviceSample], ...]  # sorted by device name
+
+    def device(self, name: str) -> DeviceSample | None:
+        for key, sample in self.devices:
+            if key == name:
+                return sample
+        return None
+
+
+@dataclass(frozen=True, slots=True)
+class PartSnapshot:
+    """A part's derived state after a frame: mode, pose of the part frame, CM velocities."""
+
+    name: str
+    mode: str
+    position: Vec3
+    rotation_xyzw: Quat
+    linear_velocity: Vec3
+    angular_velocity: Vec3
+
+
+@dataclass(frozen=True, slots=True)
+class FrameRecord:
+    """Inputs of a frame and everything the step derived from them."""
+
+    inputs: TrackerFrame
+    base: PartSnapshot | None
+    parts: tuple[PartSnapshot, ...]  # sorted by part name
+    events: tuple = field(default=())  # vade_replay.events.Event instances, in order
+
+    @property
+    def frame(self) -> int:
+        return self.inputs.frame
+
+    @property
+    def time_ns(self) -> int:
+        return self.inputs.time_ns

@@ -1,0 +1,170 @@
+"""Tracker streams: keyframes resampled at a fixed rate (with seeded noise) or a CSV log.
+
+This runs at record time only. What it yields is recorded, and a replay reads those
+recorded values, never this module: the recording is the source of truth.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from typing import Iterator
+
+import numpy as np
+
+from . import spatial as sp
+from .errors import SessionError
+from .frames import DeviceSample, TrackerFrame
+from .scene import UNIT_TO_M
+
+DEVICES = ("head", "left_hand", "right_hand")
+TIME_TO_NS = {"s": 10**9, "ms": 10**6, "us": 10**3, "ns": 1}
+CSV_COLUMNS = ("time", "device", "x", "y", "z", "q0", "q1", "q2", "q3", "grip")
+
+
+def frame_time_ns(frame: int, rate_hz: int) -> int:
+    """Integer time of a resampled frame: exact, so every run agrees on it."""
+    return frame * 10**9 // rate_hz
+
+
+def _keyframes(device: str, frames: list[dict], factor: float, file: str) -> list[tuple]:
+    out = []
+    position, rotation, grip = sp.ZERO3, sp.IDENTITY_QUAT, False
+    last_t = -1.0
+    for i, kf in enumerate(sorted(frames, key=lambda k: k["t"])):
+        where = f"tracker.devices.{device}[{i}]"
+        if kf["t"] == last_t:
+            raise SessionError("two keyframes at the same time", file=file, field=where)
+        last_t = kf["t"]
+        if "position" in kf:
+            position = tuple(float(v) * factor for v in kf["position"])
+        if "xyzw" in kf:
+            try:
+                rotation = sp.quat_normalize(tuple(float(v) for v in kf["xyzw"]))
+            except ValueError as exc:
+                raise SessionError(str(exc), file=file, field=f"{where}.xyzw") from None
+        elif "euler_deg" in kf:
+            rotation = sp.quat_from_euler_deg(*(float(v) for v in kf["euler_deg"]))
+        grip = bool(kf.get("grip", grip))
+        out.append((float(kf["t"]), position, rotation, grip))
+    return out
+
+
+def _sample(keys: list[tuple], t: float, has_grip: bool) -> DeviceSample:
+    if t <= keys[0][0]:
+        _, p, q, g = keys[0]
+        return DeviceSample(p, q, g if has_grip else None)
+    for (t0, p0, q0, g0), (t1, p1, q1, _) in zip(keys, keys[1:]):
+        if t < t1:
+            a = (t - t0) / (t1 - t0)
+            p = (p0[0] + a * (p1[0] - p0[0]), p0[1] + a * (p1[1] - p0[1]),
+                 p0[2] + a * (p1[2] - p0[2]))
+            return DeviceSample(p, sp.slerp(q0, q1, a), g0 if has_grip else None)
+    _, p, q, g = keys[-1]
+    return DeviceSample(p, q, g if has_grip else None)
+
+
+def from_keyframes(tracker: dict, units: str, *, file: str) -> Iterator[TrackerFrame]:
+    """Resample keyframes (linear position, slerp rotation, held grip) at ``rate_hz``."""
+    factor = UNIT_TO_M[units]
+    rate = int(tracker.get("rate_hz", 60))
+    count = int(math.floor(float(tracker["duration_s"]) * rate + 1e-9)) + 1
+    devices = {name: _keyframes(name, frames, factor, file)
+               for name, frames in sorted(tracker["devices"].items())}
+    noise = tracker.get("noise")
+    rng = np.random.default_rng(noise["seed"]) if noise else None
+    pos_std = float(noise.get("position_std", 0.0)) * factor if noise else 0.0
+    rot_std = math.radians(float(noise.get("rotation_std_deg", 0.0))) if noise else 0.0
+    for n in range(count):
+        t_ns = frame_time_ns(n, rate)
+        samples = []
+        for name, keys in devices.items():
+            sample = _sample(keys, t_ns * 1e-9, name != "head")
+            if rng is not None:
+                dp = rng.normal(0.0, 1.0, 3) * pos_std
+                dr = rng.normal(0.0, 1.0, 3) * rot_std
+                position = (sample.position[0] + float(dp[0]), sample.position[1] + float(dp[1]),
+                            sample.position[2] + float(dp[2]))
+                rotation = sp.quat_normalize(sp.quat_mul(
+                    sp.quat_from_rotvec((float(dr[0]), float(dr[1]), float(dr[2]))),
+                    sample.rotation_xyzw))
+                sample = DeviceSample(position, rotation, sample.grip)
+            samples.append((name, sample))
+        yield TrackerFrame(n, t_ns, tuple(samples))
+
+
+def _parse_time_ns(text: str, unit: str) -> int:
+    if unit == "ns":
+        return int(text)
+    return round(float(text) * TIME_TO_NS[unit])
+
+
+def from_csv(data: bytes, *, file: str, units: str, time_unit: str,
+             quaternion_order: str) -> Iterator[TrackerFrame]:
+    """Frames from a tracker log: one row per device sample, rows in time order.
+
+    Rows with the same time form one frame; a device seen twice at the same time starts a
+    new frame with that time (a duplicated sample). Devices missing from a frame keep their
+    last sample.
+    """
+    factor = UNIT_TO_M[units]
+    text = data.decode("utf-8-sig", errors="replace")
+    reader = csv.reader(io.StringIO(text))
+    try:
+        header = [h.strip().lower() for h in next(reader)]
+    except StopIteration:
+        raise SessionError("tracker log is empty", file=file) from None
+    missing = [c for c in CSV_COLUMNS if c not in header]
+    if missing:
+        raise SessionError(f"tracker log lacks columns {missing} (needs {list(CSV_COLUMNS)})",
+                           file=file, field="header")
+    col = {name: header.index(name) for name in CSV_COLUMNS}
+    last: dict[str, DeviceSample] = {}
+    current: dict[str, DeviceSample] = {}
+    current_t: int | None = None
+    frame = 0
+    for line_no, row in enumerate(reader, start=2):
+        if not row or all(not cell.strip() for cell in row):
+            continue
+        where = f"line {line_no}"
+        try:
+            t_ns = _parse_time_ns(row[col["time"]].strip(), time_unit)
+            device = row[col["device"]].strip()
+            position = tuple(float(row[col[c]]) * factor for c in ("x", "y", "z"))
+            q = [float(row[col[c]]) for c in ("q0", "q1", "q2", "q3")]
+            grip_text = row[col["grip"]].strip().lower()
+        except (ValueError, IndexError) as exc:
+            raise SessionError(f"unreadable row: {exc}", file=file, field=where) from None
+        if device not in DEVICES:
+            raise SessionError(f"unknown device {device!r} (use {', '.join(DEVICES)})",
+                               file=file, field=f"{where}: device")
+        if not all(math.isfinite(v) for v in (*position, *q)):
+            raise SessionError("non-finite number", file=file, field=where)
+        xyzw = (q[0], q[1], q[2], q[3]) if quaternion_order == "xyzw" else (q[1], q[2], q[3], q[0])
+        try:
+            rotation = sp.quat_normalize(xyzw)
+        except ValueError:
+            raise SessionError("zero quaternion", file=file, field=f"{where}: q0..q3") from None
+        if grip_text in ("", "none"):
+            grip = None
+        elif grip_text in ("1", "true", "yes"):
+            grip = True
+        elif grip_text in ("0", "false", "no"):
+            grip = False
+        else:
+            raise SessionError(f"grip must be 0/1/true/false, got {grip_text!r}", file=file,
+                               field=f"{where}: grip")
+        if current_t is not None and t_ns < current_t:
+            raise SessionError("time goes backwards", file=file, field=f"{where}: time")
+        if current_t is not None and (t_ns != current_t or device in current):
+            last.update(current)
+            yield TrackerFrame(frame, current_t, tuple(sorted({**last}.items())))
+            frame += 1
+            current = {}
+        current_t = t_ns
+        current[device] = DeviceSample(position, rotation, grip if device != "head" else None)
+    if current_t is None:
+        raise SessionError("tracker log has no samples", file=file)
+    last.update(current)
+    yield TrackerFrame(frame, current_t, tuple(sorted(last.items())))

@@ -1,0 +1,324 @@
+"""Record a session, and replay a recording from its inputs alone, checking every message.
+
+``simulate`` is the fold of ``step`` over a stream of tracker frames. ``record`` runs it on
+a session's tracker stream and writes the MCAP file; ``replay`` runs it on a recording's
+recorded inputs, compares each derived message byte for byte and, at the first difference,
+walks the two messages to name the frame, channel, part, field and both values.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field, fields, replace
+from pathlib import Path
+from typing import Callable, Iterable, Iterator
+
+from . import codec
+from .collision import CollisionWorld
+from .errors import ConfigError, VadeError
+from .frames import FrameRecord, TrackerFrame
+from .recording import RecordedFrame, Recording, RecordingWriter
+from .scene import LENGTH_FIELDS, Physics, Scene, with_physics
+from .session import Session
+from .step import frame_record, initial_state, step
+
+
+def simulate(scene: Scene, frames: Iterable[TrackerFrame], *,
+             collision: CollisionWorld | None = None) -> Iterator[FrameRecord]:
+    """Fold ``step`` over tracker frames, yielding what each frame derived."""
+    collision = collision or CollisionWorld(scene)
+    state = None
+    for inputs in frames:
+        if state is None:
+            state = initial_state(scene, time_ns=inputs.time_ns)
+        state, events = step(scene, collision, state, inputs)
+        yield frame_record(scene, state, inputs, events)
+
+
+@dataclass
+class Divergence:
+    """The first place where a replay differs from its recording."""
+
+    frame: int
+    time_ns: int
+    channel: str
+    part: str | None
+    field: str
+    recorded: object
+    replayed: object
+
+    def describe(self) -> str:
+        where = f"part {self.part}, " if self.part else ""
+        return (f"first divergence at frame {self.frame} (t = {self.time_ns * 1e-9:.6f} s), "
+                f"channel {self.channel}, {where}field {self.field}: recorded {self.recorded!r}, "
+                f"replayed {self.replayed!r}")
+
+
+@dataclass
+class RunSummary:
+    """What a record or replay did; printed by ``--json``."""
+
+    session: str
+    frames: int = 0
+    duration_s: float = 0.0
+    parts: list[str] = field(default_factory=list)
+    transitions: int = 0
+    transitions_by_edge: dict[str, int] = field(default_factory=dict)
+    events: int = 0
+    messages_checked: int = 0
+    match: bool | None = None
+    first_divergence: dict | None = None
+    overrides: dict = field(default_factory=dict)
+    counters: dict = field(default_factory=dict)
+
+    def count(self, record: FrameRecord, first_time_ns: int) -> None:
+        self.frames += 1
+        self.duration_s = (record.time_ns - first_time_ns) * 1e-9
+        for event in record.events:
+            self.events += 1
+            if event.kind == "ModeChanged":
+                self.transitions += 1
+                edge = f"{event.from_mode}->{event.to_mode}"
+                self.transitions_by_edge[edge] = self.transitions_by_edge.get(edge, 0) + 1
+
+
+def _first_difference(a, b, path: str = ""):
+    """Path of the first differing leaf between two decoded JSON values, with both values."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        for key in sorted(set(a) | set(b)):
+            if key not in a or key not in b:
+                return f"{path}.{key}".lstrip("."), a.get(key, "<missing>"), b.get(key, "<missing>")
+            found = _first_difference(a[key], b[key], f"{path}.{key}")
+            if found:
+                return found
+        return None
+    if isinstance(a, list) and isinstance(b, list):
+        for i, (x, y) in enumerate(zip(a, b)):
+            found = _first_difference(x, y, f"{path}[{i}]")
+            if found:
+                return found
+        if len(a) != len(b):
+            return f"{path} length".lstrip("."), len(a), len(b)
+        return None
+    if a != b or type(a) is not type(b):
+        return path.lstrip("."), a, b
+    return None
+
+
+def _divergence(inputs: TrackerFrame, recorded: list[tuple[str, bytes]],
+                replayed: list[tuple[str, bytes]]) -> Divergence | None:
+    frame, t = inputs.frame, inputs.time_ns
+    for index in range(max(len(recorded), len(replayed))):
+        if index >= len(recorded) or index >= len(replayed):
+            extra = replayed[index] if index < len(replayed) else recorded[index]
+            message = json.loads(extra[1])
+            return Divergence(frame, t, extra[0], message.get("part"), "message",
+                              "<none>" if index >= len(recorded) else message,
+                              "<none>" if index >= len(replayed) else message)
+        (topic_a, data_a), (topic_b, data_b) = recorded[index], replayed[index]
+        if topic_a != topic_b:
+            return Divergence(frame, t, topic_a, None, "channel", topic_a, topic_b)
+        if data_a == data_b:
+            continue
+        a, b = json.loads(data_a), json.loads(data_b)
+        found = _first_difference(a, b)
+        if found is None:
+            continue  # same values, different bytes (e.g. written by another encoder)
+        path, value_a, value_b = found
+        part = None
+        if topic_a == codec.PARTS_TOPIC and path.startswith("parts["):
+            index_part = int(path[6:path.index("]")])
+            part = a["parts"][index_part]["name"] if index_part < len(a["parts"]) else None
+            path = path[path.index("]") + 2:] if "]." in path else path
+        elif topic_a == codec.PARTS_TOPIC and path.startswith("base."):
+            part, path = (a.get("base") or {}).get("name"), path[5:]
+        elif topic_a == codec.FOXGLOVE_TOPIC and path.startswith("transforms["):
+            i = int(path[11:path.index("]")])
+            part = a["transforms"][i]["child_frame_id"] if i < len(a["transforms"]) else None
+            path = path[path.index("]") + 2:] if "]." in path else path
+        elif isinstance(a, dict) and "part" in a:
+            part = a["part"]
+        return Divergence(frame, t, topic_a, part, path, value_a, value_b)
+    return None
+
+
+def apply_overrides(scene: Scene, overrides: dict[str, str]) -> tuple[Scene, dict]:
+    """Scene with ``physics.NAME=VALUE`` overrides applied; values are JSON (numbers, strings).
+
+    Lengths are in metres here, whatever the session's units.
+    """
+    names = {f.name: f for f in fields(Physics)}
+    changes: dict[str, object] = {}
+    for key, text in overrides.items():
+        if not key.startswith("physics.") or key[8:] not in names:
+            raise ConfigError(f"unknown parameter {key!r}; settable: "
+                              + ", ".join(f"physics.{n}" for n in sorted(names)), field=key)
+        name = key[8:]
+        try:
+            value = json.loads(text)
+        except json.JSONDecodeError:
+            value = text
+        current = getattr(scene.physics, name)
+        if isinstance(current, tuple):
+            if not (isinstance(value, list) and len(value) == len(current)):
+                raise ConfigError(f"needs a list of {len(current)} numbers", field=key, value=text)
+            value = tuple(float(v) for v in value)
+        elif isinstance(current, bool) or isinstance(current, str):
+            if not isinstance(value, type(current)):
+                raise ConfigError(f"needs a {type(current).__name__}", field=key, value=text)
+        elif isinstance(current, (int, float)):
+            if not isinstance(value, (int, float)) or isinstance(value, bool):
+                raise ConfigError("needs a number", field=key, value=text)
+            value = type(current)(value)
+        changes[name] = value
+    if not changes:
+        return scene, {}
+    try:
+        changed = with_physics(scene, **changes)
+        _check_physics(changed.physics)
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(str(exc), field="--set") from None
+    return changed, {f"physics.{k}": v for k, v in changes.items()}
+
+
+def _check_physics(physics: Physics) -> None:
+    if physics.free_rotation not in ("momentum", "constant_omega"):
+        raise ConfigError("physics.free_rotation must be momentum or constant_omega",
+                          field="physics.free_rotation")
+    if physics.release_velocity not in ("window_fit", "two_frame"):
+        raise ConfigError("physics.release_velocity must be window_fit or two_frame",
+                          field="physics.release_velocity")
+    if physics.free_rotation_order not in (2, 4, 6):
+        raise ConfigError("physics.free_rotation_order must be 2, 4 or 6",
+                          field="physics.free_rotation_order")
+    for name in (*LENGTH_FIELDS, "free_rotation_max_step_s", "one_hand_max_mass_kg"):
+        if not getattr(physics, name) > 0:
+            raise ConfigError(f"physics.{name} must be positive", field=f"physics.{name}")
+    if physics.release_window < 2:
+        raise ConfigError("physics.release_window must be at least 2",
+                          field="physics.release_window")
+
+
+def record(session: Session, out: str | Path, *,
+           on_frame: Callable[[FrameRecord], None] | None = None) -> RunSummary:
+    """Run a session's tracker stream and write the recording to ``out``.
+
+    The file is written as ``out.partial`` and renamed when complete. If the run fails part
+    way, the partial file is closed properly (readable, indexed) and kept, and the error is
+    raised with the frame it happened at.
+    """
+    out = Path(out)
+    scene = session.build_scene()
+    collision = CollisionWorld(scene)
+    summary = RunSummary(session.name, parts=[p.name for p in scene.parts])
+    partial = out.with_name(out.name + ".partial")
+    first_time = None
+    frame = None
+    writer = RecordingWriter(partial, session, scene)
+    try:
+        for record_ in simulate(scene, session.tracker_frames(), collision=collision):
+            frame = record_.frame
+            if first_time is None:
+                first_time = record_.time_ns
+            writer.write_frame(record_)
+            summary.count(record_, first_time)
+            if on_frame:
+                on_frame(record_)
+    except VadeError as exc:
+        writer.close()
+        if exc.frame is None:
+            exc.frame = frame
+        exc.message += f" (the {writer.frames} frames before it are kept in {partial})"
+        raise type(exc)(exc.message, file=exc.file, field=exc.field, frame=exc.frame) from None
+    except BaseException:
+        writer.close()
+        raise
+    writer.close()
+    os.replace(partial, out)
+    summary.counters = dict(collision.stats)
+    return summary
+
+
+@dataclass
+class ReplayFrame:
+    """One replayed frame: what was recorded, what the replay derived, and the check."""
+
+    recorded: RecordedFrame
+    replayed: FrameRecord
+    derived: list[tuple[str, bytes]]
+    divergence: Divergence | None
+
+
+def replay_frames(recording: Recording, scene: Scene, *, check: bool = True,
+                  collision: CollisionWorld | None = None) -> Iterator[ReplayFrame]:
+    """Re-run a recording's inputs through ``scene``, comparing each frame's messages."""
+    recorded_frames = recording.frames()
+    cache: list[RecordedFrame] = []
+
+    def inputs() -> Iterator[TrackerFrame]:
+        for recorded in recorded_frames:
+            cache.append(recorded)
+            yield recorded.inputs
+
+    for replayed in simulate(scene, inputs(), collision=collision):
+        recorded = cache.pop()
+        derived = codec.derived_messages(replayed)
+        divergence = _divergence(recorded.inputs, recorded.derived, derived) if check else None
+        yield ReplayFrame(recorded, replayed, derived, divergence)
+
+
+def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
+           out: str | Path | None = None,
+           on_frame: Callable[[ReplayFrame], None] | None = None) -> RunSummary:
+    """Replay a recording from its inputs alone and check every derived message.
+
+    With ``overrides`` the scene's physics is changed first (a what-if replay); the check
+    then reports where the changed run departs from the recording. With ``out`` the
+    regenerated recording is written there; the original file is never modified.
+    """
+    scene = recording.session.build_scene()
+    scene, applied = apply_overrides(scene, overrides or {})
+    collision = CollisionWorld(scene)
+    summary = RunSummary(recording.session.name, parts=[p.name for p in scene.parts],
+                         overrides=applied)
+    writer = None
+    if out is not None:
+        if Path(out).resolve() == recording.path.resolve():
+            raise ConfigError("refusing to overwrite the recording being replayed", file=str(out))
+        writer = RecordingWriter(Path(out), recording.session, scene,
+                                 extra_metadata={"replayed_from": str(recording.path)})
+    first_time = None
+    try:
+        for item in replay_frames(recording, scene, collision=collision):
+            if first_time is None:
+                first_time = item.replayed.time_ns
+            summary.count(item.replayed, first_time)
+            summary.messages_checked += len(item.recorded.derived)
+            if item.divergence and summary.first_divergence is None:
+                summary.first_divergence = item.divergence.__dict__ | {
+                    "text": item.divergence.describe()}
+            if writer:
+                writer.write_frame(item.replayed, item.derived)
+            if on_frame:
+                on_frame(item)
+    finally:
+        if writer:
+            writer.close()
+    if summary.frames == 0:
+        raise VadeError("recording holds no frames", file=str(recording.path))
+    summary.match = summary.first_divergence is None
+    summary.counters = dict(collision.stats)
+    return summary
+
+
+def recorded_record(frame: RecordedFrame) -> FrameRecord:
+    """A recorded frame decoded into the shape the review consumes."""
+    base, parts = None, ()
+    events = []
+    for topic, data in frame.derived:
+        if topic == codec.PARTS_TOPIC:
+            base, parts = codec.decode_parts(data, frame=frame.inputs.frame)
+        elif topic.startswith(codec.EVENT_TOPIC_PREFIX):
+            events.append(codec.decode_event(topic, data, frame=frame.inputs.frame))
+    return replace(FrameRecord(frame.inputs, base, parts), events=tuple(events))

@@ -1,0 +1,313 @@
+"""The Scene: everything that stays fixed during a session, built once by ``build_scene``.
+
+This is the only module that touches trimesh. It takes the validated session document and
+the bytes of the files it names (so a recording's attachments build the same scene as the
+files on disk), converts every length to metres once, and freezes the result: numpy arrays
+are made read-only.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+import trimesh
+
+from . import spatial as sp
+from .errors import SessionError
+from .massprops import MassProperties, check, parse_creo_report
+from .modes import Mode
+
+UNIT_TO_M = {"m": 1.0, "mm": 1e-3, "in": 0.0254}
+DEFAULT_GRAVITY_M_S2 = (0.0, 0.0, -9.8)
+MESH_TYPES = {".stl": "stl", ".obj": "obj", ".glb": "glb", ".gltf": "gltf", ".ply": "ply",
+              ".off": "off"}
+
+
+@dataclass(frozen=True)
+class Physics:
+    """Physical parameters and model choices; all in SI units."""
+
+    model: str = "general"
+    gravity: sp.Vec3 = DEFAULT_GRAVITY_M_S2
+    gravity_scale_free: float = 0.25
+    gravity_scale_slide: float = 1.0
+    gravity_scale_rotation: float = 1.0
+    free_rotation: str = "momentum"          # paper: constant_omega
+    free_rotation_order: int = 4
+    free_rotation_max_step_s: float = 1.0 / 240.0
+    release_velocity: str = "window_fit"     # paper: two_frame
+    release_window: int = 5
+    grab_radius: float = 0.05
+    one_hand_max_mass_kg: float = 5.0
+    contact_tolerance: float = 1e-4
+
+    @property
+    def gravity_free(self) -> sp.Vec3:
+        return sp.scale(self.gravity, self.gravity_scale_free)
+
+
+PAPER_DEFAULTS = {"free_rotation": "constant_omega", "release_velocity": "two_frame"}
+LENGTH_FIELDS = ("grab_radius", "contact_tolerance")
+
+
+def _frozen(array) -> np.ndarray:
+    out = np.array(array, dtype=np.float64, copy=True)
+    out.setflags(write=False)
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class Body:
+    """A rigid body's fixed data: geometry in its own frame (metres) and mass properties."""
+
+    name: str
+    vertices: np.ndarray            # (N, 3) float64, read-only
+    faces: np.ndarray               # (M, 3) int64, read-only
+    mass_kg: float
+    center_of_mass: sp.Vec3         # part frame
+    inertia_cm: sp.Mat3             # at the CM, part-frame axes
+    principal_moments: sp.Vec3      # ascending
+    part_from_principal: sp.Quat
+    radius_about_cm: float          # farthest vertex from the CM
+    bbox_min: sp.Vec3               # part frame
+    bbox_max: sp.Vec3
+    initial_pose: sp.Pose
+    initial_mode: Mode
+    color: tuple[int, ...] | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    """Parts, base part, environment and physics of a session; never changes while it runs."""
+
+    name: str
+    units: str
+    physics: Physics
+    parts: tuple[Body, ...]                 # sorted by name
+    base: Body | None
+    hand_from_base: sp.Pose
+    environment: tuple[Body, ...]           # sorted by name
+    part_index: dict = field(default_factory=dict)
+
+    def part(self, name: str) -> Body:
+        return self.parts[self.part_index[name]]
+
+
+def _vec(values, factor: float = 1.0) -> sp.Vec3:
+    return (float(values[0]) * factor, float(values[1]) * factor, float(values[2]) * factor)
+
+
+def pose_from_doc(doc: dict | None, length_factor: float, *, where: str, file: str) -> sp.Pose:
+    """A pose field of a session file: position in session units, rotation as xyzw or euler."""
+    if not doc:
+        return sp.IDENTITY
+    position = _vec(doc.get("position", (0.0, 0.0, 0.0)), length_factor)
+    if "xyzw" in doc:
+        try:
+            rotation = sp.quat_normalize(tuple(float(v) for v in doc["xyzw"]))
+        except ValueError as exc:
+            raise SessionError(str(exc), file=file, field=f"{where}.xyzw") from None
+    elif "euler_deg" in doc:
+        rotation = sp.quat_from_euler_deg(*(float(v) for v in doc["euler_deg"]))
+    else:
+        rotation = sp.IDENTITY_QUAT
+    return sp.Pose(position, rotation)
+
+
+def _gear_mesh(radius: float, height: float, teeth: int, tooth_depth: float,
+               inner_radius: float | None, samples_per_tooth: int = 8) -> trimesh.Trimesh:
+    """A disc with a toothed rim (and an optional bore), along z, centred at the origin."""
+    n = teeth * samples_per_tooth
+    angles = [2.0 * math.pi * i / n for i in range(n)]
+    outer = []
+    for i, a in enumerate(angles):
+        phase = (i % samples_per_tooth) / samples_per_tooth
+        r = radius if phase < 0.5 else radius - tooth_depth
+        outer.append((r * math.cos(a), r * math.sin(a)))
+    z0, z1 = -0.5 * height, 0.5 * height
+    vertices = []
+    faces = []
+    if inner_radius:
+        inner = [(inner_radius * math.cos(a), inner_radius * math.sin(a)) for a in angles]
+        # Rings: outer bottom, outer top, inner bottom, inner top.
+        for ring, z in ((outer, z0), (outer, z1), (inner, z0), (inner, z1)):
+            vertices.extend((x, y, z) for x, y in ring)
+        ob, ot, ib, it = 0, n, 2 * n, 3 * n
+        for i in range(n):
+            j = (i + 1) % n
+            faces += [(ob + i, ob + j, ot + j), (ob + i, ot + j, ot + i)]      # outer wall
+            faces += [(ib + i, it + j, ib + j), (ib + i, it + i, it + j)]      # bore wall
+            faces += [(ot + i, ot + j, it + j), (ot + i, it + j, it + i)]      # top annulus
+            faces += [(ob + i, ib + j, ob + j), (ob + i, ib + i, ib + j)]      # bottom annulus
+    else:
+        for z in (z0, z1):
+            vertices.extend((x, y, z) for x, y in outer)
+        vertices += [(0.0, 0.0, z0), (0.0, 0.0, z1)]
+        cb, ct = 2 * n, 2 * n + 1
+        for i in range(n):
+            j = (i + 1) % n
+            faces += [(i, j, n + j), (i, n + j, n + i)]
+            faces += [(n + i, n + j, ct), (i, cb, j)]
+    mesh = trimesh.Trimesh(vertices=np.array(vertices), faces=np.array(faces), process=True)
+    trimesh.repair.fix_normals(mesh)
+    return mesh
+
+
+def _mesh_from_shape(shape: dict, length_factor: float, files: dict[str, bytes], *,
+                     where: str, file: str) -> trimesh.Trimesh:
+    kind = shape["type"]
+    f = length_factor
+    if kind == "box":
+        return trimesh.creation.box(extents=[v * f for v in shape["size"]])
+    sections = int(shape.get("sections", 48))
+    if kind == "cylinder":
+        return trimesh.creation.cylinder(radius=shape["radius"] * f, height=shape["height"] * f,
+                                         sections=sections)
+    if kind == "tube":
+        if shape["inner_radius"] >= shape["radius"]:
+            raise SessionError("inner_radius must be smaller than radius", file=file,
+                               field=f"{where}.shape.inner_radius")
+        return trimesh.creation.annulus(r_min=shape["inner_radius"] * f, r_max=shape["radius"] * f,
+                                        height=shape["height"] * f, sections=sections)
+    if kind == "gear":
+        depth = shape.get("tooth_depth", 0.1 * shape["radius"])
+        inner = shape.get("inner_radius")
+        if depth >= shape["radius"] or (inner and inner >= shape["radius"] - depth):
+            raise SessionError("gear teeth or bore do not fit inside the radius", file=file,
+                               field=f"{where}.shape")
+        return _gear_mesh(shape["radius"] * f, shape["height"] * f, int(shape["teeth"]),
+                          depth * f, inner * f if inner else None)
+    # A mesh file: its own units, else the session's.
+    name = shape["file"]
+    if name not in files:
+        raise SessionError(f"mesh file {name!r} not found", file=file, field=f"{where}.shape.file")
+    suffix = "." + name.rsplit(".", 1)[-1].lower() if "." in name else ""
+    if suffix not in MESH_TYPES:
+        raise SessionError(f"unsupported mesh type {suffix!r} (use {', '.join(MESH_TYPES)})",
+                           file=file, field=f"{where}.shape.file")
+    try:
+        loaded = trimesh.load(io.BytesIO(files[name]), file_type=MESH_TYPES[suffix], force="mesh",
+                              process=True)
+    except Exception as exc:  # trimesh raises many types for a corrupt file
+        raise SessionError(f"cannot read mesh: {exc}", file=name, field=f"{where}.shape.file") \
+            from None
+    if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
+        raise SessionError("mesh file holds no triangles", file=name, field=f"{where}.shape.file")
+    mesh_factor = UNIT_TO_M[shape["units"]] if "units" in shape else f
+    loaded.apply_scale(mesh_factor)
+    return loaded
+
+
+def _mass_properties(doc: dict, mesh: trimesh.Trimesh, length_factor: float,
+                     files: dict[str, bytes], *, where: str, file: str) -> MassProperties:
+    given = doc.get("mass_properties")
+    if given and "file" in given:
+        name = given["file"]
+        if name not in files:
+            raise SessionError(f"mass-property report {name!r} not found", file=file,
+                               field=f"{where}.mass_properties.file")
+        try:
+            text = files[name].decode("utf-8", errors="replace")
+        except AttributeError:
+            text = str(files[name])
+        return parse_creo_report(text, file=name,
+                                 products_sign=given.get("products_sign", "tensor"))
+    if given:
+        f = length_factor
+        props = MassProperties(
+            float(given["mass"]), _vec(given["center_of_mass"], f),
+            tuple(_vec(row, f * f) for row in given["inertia"]))  # type: ignore[arg-type]
+        return check(props, file=file, field=f"{where}.mass_properties")
+    if "density" not in doc:
+        raise SessionError("give either density or mass_properties", file=file, field=where)
+    if not mesh.is_watertight:
+        raise SessionError(
+            "mesh is not watertight, so its volume and inertia are undefined; give "
+            "mass_properties (a CAD report or the numbers) for this part", file=file,
+            field=f"{where}.shape")
+    mesh = mesh.copy()
+    mesh.density = float(doc["density"])
+    props = MassProperties(float(mesh.mass), _vec(mesh.center_mass),
+                           tuple(_vec(row) for row in mesh.moment_inertia))  # type: ignore[arg-type]
+    return check(props, file=file, field=f"{where}.density")
+
+
+def _principal(props: MassProperties) -> tuple[sp.Vec3, sp.Quat]:
+    moments, axes = np.linalg.eigh(np.array(props.inertia_cm, dtype=np.float64))
+    if np.linalg.det(axes) < 0.0:
+        axes[:, 2] = -axes[:, 2]
+    return _vec(moments), sp.quat_from_matrix(axes)
+
+
+def _body(doc: dict, length_factor: float, files: dict[str, bytes], *, where: str, file: str,
+          mode: Mode, needs_mass: bool) -> Body:
+    mesh = _mesh_from_shape(doc["shape"], length_factor, files, where=where, file=file)
+    if needs_mass:
+        props = _mass_properties(doc, mesh, length_factor, files, where=where, file=file)
+    else:
+        props = MassProperties(1.0, _vec(mesh.centroid), ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0),
+                                                          (0.0, 0.0, 1.0)))
+    moments, part_from_principal = _principal(props)
+    vertices = np.asarray(mesh.vertices, dtype=np.float64)
+    radius = float(np.max(np.linalg.norm(vertices - np.array(props.center_of_mass), axis=1)))
+    faces = np.array(mesh.faces, dtype=np.int64)
+    faces.setflags(write=False)
+    return Body(
+        name=doc["name"], vertices=_frozen(vertices), faces=faces, mass_kg=props.mass_kg,
+        center_of_mass=props.center_of_mass, inertia_cm=props.inertia_cm,
+        principal_moments=moments, part_from_principal=part_from_principal,
+        radius_about_cm=radius, bbox_min=_vec(vertices.min(axis=0)),
+        bbox_max=_vec(vertices.max(axis=0)),
+        initial_pose=pose_from_doc(doc.get("pose"), length_factor, where=f"{where}.pose",
+                                   file=file),
+        initial_mode=mode, color=tuple(doc["color"]) if "color" in doc else None)
+
+
+def physics_from_doc(doc: dict, length_factor: float) -> Physics:
+    """Physics from a session's ``physics`` block, lengths converted to metres."""
+    values = dict(doc)
+    model = values.get("model", "general")
+    if model == "paper":
+        for key, value in PAPER_DEFAULTS.items():
+            values.setdefault(key, value)
+    if "gravity" in values:
+        values["gravity"] = _vec(values["gravity"], length_factor)
+    for key in LENGTH_FIELDS:
+        if key in values:
+            values[key] = float(values[key]) * length_factor
+    return Physics(**values)
+
+
+def build_scene(session: dict, files: dict[str, bytes], *, file: str = "<session>") -> Scene:
+    """Build the frozen Scene from a validated session document and the files it names."""
+    units = session.get("units", "m")
+    f = UNIT_TO_M[units]
+    physics = physics_from_doc(session.get("physics", {}), f)
+    names = [p["name"] for p in session["parts"]]
+    if len(set(names)) != len(names):
+        raise SessionError("part names must be unique", file=file, field="parts")
+    parts = tuple(sorted(
+        (_body(doc, f, files, where=f"parts[{i}]", file=file, mode=Mode.STATIC, needs_mass=True)
+         for i, doc in enumerate(session["parts"])), key=lambda b: b.name))
+    base = None
+    hand_from_base = sp.IDENTITY
+    if "base" in session:
+        base = _body(session["base"], f, files, where="base", file=file, mode=Mode.INHAND,
+                     needs_mass=True)
+        hand_from_base = pose_from_doc(session["base"].get("hand_from_base"), f,
+                                       where="base.hand_from_base", file=file)
+    environment = tuple(sorted(
+        (_body(doc, f, files, where=f"environment[{i}]", file=file, mode=Mode.STATIC,
+               needs_mass=False)
+         for i, doc in enumerate(session.get("environment", []))), key=lambda b: b.name))
+    return Scene(name=session["name"], units=units, physics=physics, parts=parts, base=base,
+                 hand_from_base=hand_from_base, environment=environment,
+                 part_index={b.name: i for i, b in enumerate(parts)})
+
+
+def with_physics(scene: Scene, **changes) -> Scene:
+    """The same scene with some physics parameters changed (what-if replays)."""
+    return replace(scene, physics=replace(scene.physics, **changes))

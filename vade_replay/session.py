@@ -1,0 +1,135 @@
+"""Session files: read, validate against ``schemas/session.schema.json``, gather named files.
+
+A ``Session`` holds the document and the bytes of every file it names, so the same object
+comes from a file on disk or from a recording's attachments, and the scene built from
+either is the same.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Iterator
+
+import jsonschema
+
+from . import inputs
+from .errors import SessionError
+from .frames import TrackerFrame
+from .scene import Scene, build_scene
+
+
+def load_schema(name: str) -> dict:
+    """A JSON Schema shipped in ``schemas/`` (installed as ``vade_replay.schemas``)."""
+    ref = resources.files("vade_replay.schemas")
+    for part in name.split("/"):
+        ref = ref.joinpath(part)
+    return json.loads(ref.read_text(encoding="utf-8"))
+
+
+_VALIDATOR = None
+
+
+def _validator() -> jsonschema.Draft202012Validator:
+    global _VALIDATOR
+    if _VALIDATOR is None:
+        _VALIDATOR = jsonschema.Draft202012Validator(load_schema("session.schema.json"))
+    return _VALIDATOR
+
+
+def _path(error: jsonschema.ValidationError) -> str:
+    out = ""
+    for item in error.absolute_path:
+        out += f"[{item}]" if isinstance(item, int) else (f".{item}" if out else str(item))
+    return out or "(top level)"
+
+
+def validate(doc: object, *, file: str) -> None:
+    """Raise ``SessionError`` naming the first bad field."""
+    errors = sorted(_validator().iter_errors(doc), key=lambda e: (list(e.absolute_path), e.message))
+    if errors:
+        error = jsonschema.exceptions.best_match(errors)
+        raise SessionError(error.message, file=file, field=_path(error))
+
+
+def referenced_files(doc: dict) -> list[str]:
+    """Every file a session names, relative to the session file, sorted."""
+    names = set()
+    bodies = list(doc.get("parts", [])) + list(doc.get("environment", []))
+    if "base" in doc:
+        bodies.append(doc["base"])
+    for body in bodies:
+        if "file" in body.get("shape", {}):
+            names.add(body["shape"]["file"])
+        if "file" in body.get("mass_properties", {}):
+            names.add(body["mass_properties"]["file"])
+    if "csv" in doc.get("tracker", {}):
+        names.add(doc["tracker"]["csv"])
+    return sorted(names)
+
+
+@dataclass(frozen=True)
+class Session:
+    """A validated session document and the bytes of the files it names."""
+
+    doc: dict
+    files: dict[str, bytes]
+    source: str  # where it came from, for messages
+    raw: bytes   # the session file's own bytes, attached to recordings as they are
+
+    @property
+    def name(self) -> str:
+        return self.doc["name"]
+
+    def build_scene(self) -> Scene:
+        return build_scene(self.doc, self.files, file=self.source)
+
+    def tracker_frames(self) -> Iterator[TrackerFrame]:
+        """The tracker stream to record (keyframes resampled, or the CSV log)."""
+        tracker = self.doc["tracker"]
+        units = self.doc.get("units", "m")
+        if "csv" in tracker:
+            name = tracker["csv"]
+            return inputs.from_csv(self.files[name], file=name,
+                                   units=tracker.get("csv_units", units),
+                                   time_unit=tracker.get("csv_time_unit", "s"),
+                                   quaternion_order=tracker["csv_quaternion_order"])
+        return inputs.from_keyframes(tracker, units, file=self.source)
+
+
+def parse(raw: bytes, files: dict[str, bytes], *, source: str) -> Session:
+    """A Session from the session file's bytes and the named files' bytes."""
+    try:
+        doc = json.loads(raw.decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise SessionError(f"not valid JSON: {exc}", file=source) from None
+    validate(doc, file=source)
+    missing = [name for name in referenced_files(doc) if name not in files]
+    if missing:
+        raise SessionError(f"named files are missing: {', '.join(missing)}", file=source)
+    return Session(doc, files, source, raw)
+
+
+def load(path: str | Path) -> Session:
+    """Read and validate a session file and every file it names, relative to it."""
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise SessionError(f"cannot read session file: {exc.strerror}", file=str(path)) from None
+    try:
+        doc = json.loads(raw.decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise SessionError(f"not valid JSON: {exc}", file=str(path)) from None
+    validate(doc, file=str(path))
+    files = {}
+    for name in referenced_files(doc):
+        target = path.parent / name
+        try:
+            files[name] = target.read_bytes()
+        except OSError as exc:
+            raise SessionError(f"cannot read {name!r}: {exc.strerror}", file=str(path),
+                               field=name) from None
+    return Session(doc, files, str(path), raw)
