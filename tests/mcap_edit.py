@@ -1,0 +1,42 @@
+"""Test helper: copy a recording, changing or dropping messages (as a corrupted file would)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable
+
+from mcap.reader import make_reader
+from mcap.writer import CompressionType, Writer
+
+
+def copy_recording(src: Path, dst: Path, edit: Callable[[str, int, bytes], bytes | None],
+                   *, drop_attachments: tuple[str, ...] = ()) -> None:
+    """Copy src to dst; ``edit(topic, index_on_topic, data)`` returns new data or None to drop."""
+    with open(src, "rb") as f_in, open(dst, "wb") as f_out:
+        reader = make_reader(f_in)
+        header = reader.get_header()
+        writer = Writer(f_out, compression=CompressionType.ZSTD)
+        writer.start(profile=header.profile, library=header.library)
+        summary = reader.get_summary()
+        schema_ids, channel_ids = {}, {}
+        for schema_id, schema in sorted(summary.schemas.items()):
+            schema_ids[schema_id] = writer.register_schema(schema.name, schema.encoding,
+                                                           schema.data)
+        for channel_id, channel in sorted(summary.channels.items()):
+            channel_ids[channel_id] = writer.register_channel(
+                channel.topic, channel.message_encoding, schema_ids[channel.schema_id])
+        for attachment in reader.iter_attachments():
+            if attachment.name not in drop_attachments:
+                writer.add_attachment(attachment.create_time, attachment.log_time,
+                                      attachment.name, attachment.media_type, attachment.data)
+        for metadata in reader.iter_metadata():
+            writer.add_metadata(metadata.name, dict(metadata.metadata))
+        counts: dict[str, int] = {}
+        for _, channel, message in reader.iter_messages(log_time_order=False):
+            index = counts.get(channel.topic, 0)
+            counts[channel.topic] = index + 1
+            data = edit(channel.topic, index, message.data)
+            if data is not None:
+                writer.add_message(channel_ids[channel.id], message.log_time, data,
+                                   message.publish_time, message.sequence)
+        writer.finish()

@@ -1,0 +1,129 @@
+"""Bad input: one clear line naming the file, field or frame; exit code 2; no traceback."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from conftest import RECORDINGS, run_cli
+from mcap_edit import copy_recording
+
+
+def _assert_clean_error(result, *needles):
+    assert result.returncode == 2, (result.stdout, result.stderr)
+    assert "Traceback" not in result.stderr
+    assert result.stderr.startswith("error: ")
+    for needle in needles:
+        assert needle in result.stderr, result.stderr
+
+
+def _write(tmp_path: Path, doc) -> Path:
+    path = tmp_path / "s.json"
+    path.write_text(doc if isinstance(doc, str) else json.dumps(doc))
+    return path
+
+
+def _doc():
+    return json.loads((RECORDINGS / "drop_on_table.json").read_text())
+
+
+def test_missing_session_file(tmp_path):
+    # As a real process: the user sees one line, not a traceback.
+    _assert_clean_error(run_cli("vade-record", str(tmp_path / "nope.json"), process=True),
+                        "nope.json")
+
+
+def test_session_not_json(tmp_path):
+    _assert_clean_error(run_cli("vade-record", str(_write(tmp_path, "{oops"))), "s.json", "JSON")
+
+
+@pytest.mark.parametrize("mutate, field", [
+    (lambda d: d["parts"][0]["shape"].pop("size"), "parts[0].shape"),
+    (lambda d: d["tracker"].update(rate_hz=0), "tracker.rate_hz"),
+    (lambda d: d.update(units="furlong"), "units"),
+    (lambda d: d["parts"][0].update(density=-1), "parts[0].density"),
+])
+def test_invalid_session_names_the_field(tmp_path, mutate, field):
+    doc = _doc()
+    mutate(doc)
+    _assert_clean_error(run_cli("vade-record", str(_write(tmp_path, doc))), "s.json", field)
+
+
+def test_bad_mesh_file_is_named(tmp_path):
+    doc = _doc()
+    doc["parts"][0]["shape"] = {"type": "mesh", "file": "broken.stl"}
+    (tmp_path / "broken.stl").write_bytes(b"solid nothing\nendsolid\n")
+    _assert_clean_error(run_cli("vade-record", str(_write(tmp_path, doc))), "broken.stl")
+
+
+def test_existing_output_survives_a_bad_session(tmp_path):
+    out = tmp_path / "keep.mcap"
+    out.write_bytes(b"precious")
+    doc = _doc()
+    doc["parts"][0]["shape"].pop("size")
+    _assert_clean_error(run_cli("vade-record", str(_write(tmp_path, doc)), "-o", str(out)))
+    assert out.read_bytes() == b"precious"
+
+
+def test_not_a_recording(tmp_path):
+    path = tmp_path / "x.mcap"
+    path.write_bytes(b"not an mcap file at all")
+    _assert_clean_error(run_cli("vade-replay", str(path), process=True), "x.mcap")
+    _assert_clean_error(run_cli("vade-replay", str(tmp_path / "missing.mcap")), "missing.mcap")
+
+
+def test_truncated_recording(tmp_path):
+    data = (RECORDINGS / "drop_on_table.mcap").read_bytes()
+    path = tmp_path / "cut.mcap"
+    path.write_bytes(data[: len(data) // 2])
+    result = run_cli("vade-replay", str(path))
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert "cut.mcap" in result.stderr
+
+
+def test_malformed_tracker_message_names_the_frame(tmp_path):
+    def edit(topic, index, data):
+        if topic == "/tracker" and index == 42:
+            msg = json.loads(data)
+            msg["devices"]["right_hand"]["position"] = [0.0, "x", 1.0]
+            return json.dumps(msg).encode()
+        return data
+
+    path = tmp_path / "bad_input.mcap"
+    copy_recording(RECORDINGS / "drop_on_table.mcap", path, edit)
+    _assert_clean_error(run_cli("vade-replay", str(path)), "bad_input.mcap", "frame 42",
+                        "right_hand.position")
+
+
+def test_recording_without_its_session(tmp_path):
+    path = tmp_path / "nosession.mcap"
+    copy_recording(RECORDINGS / "drop_on_table.mcap", path, lambda t, i, d: d,
+                   drop_attachments=("session.json",))
+    _assert_clean_error(run_cli("vade-replay", str(path)), "nosession.mcap", "session")
+
+
+@pytest.mark.parametrize("setting, needle", [
+    ("physics.no_such=1", "physics.no_such"),
+    ("physics.gravity_scale_free=fast", "physics.gravity_scale_free"),
+    ("gravity=1", "gravity"),
+    ("physics.free_rotation=spin", "physics.free_rotation"),
+])
+def test_bad_set_override(setting, needle):
+    _assert_clean_error(run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"),
+                                "--set", setting), needle)
+
+
+def test_what_if_replay_runs_and_leaves_the_original_alone(tmp_path):
+    golden = RECORDINGS / "drop_on_table.mcap"
+    before = golden.read_bytes()
+    out = tmp_path / "whatif.mcap"
+    result = run_cli("vade-replay", str(golden), "--set", "physics.gravity_scale_free=1.0",
+                     "--json", "-o", str(out))
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(result.stdout)
+    assert summary["overrides"] == {"physics.gravity_scale_free": 1.0}
+    assert summary["match"] is False  # full gravity: the drop differs from the recording
+    assert golden.read_bytes() == before
+    assert out.exists()

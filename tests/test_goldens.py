@@ -1,0 +1,95 @@
+"""Golden recordings are regression tests: each replays exactly; a changed value is caught."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from conftest import RECORDINGS, run_cli
+from mcap_edit import copy_recording
+from vade_replay.recording import Recording
+from vade_replay.replay import replay
+
+GOLDENS = sorted(RECORDINGS.glob("*.mcap"))
+
+
+def test_every_session_has_a_golden():
+    sessions = sorted(p.stem for p in RECORDINGS.glob("*.json"))
+    assert sessions, "no sessions in recordings/"
+    assert sessions == [p.stem for p in GOLDENS]
+    for required in ("drop_on_table", "throw_and_catch", "tumbling_box"):
+        assert required in sessions
+
+
+@pytest.mark.parametrize("golden", GOLDENS, ids=[p.stem for p in GOLDENS])
+def test_golden_replays_exactly(golden: Path):
+    summary = replay(Recording(golden))
+    assert summary.first_divergence is None, summary.first_divergence
+    assert summary.match and summary.frames > 10
+    assert summary.messages_checked >= 2 * summary.frames
+
+
+def test_changed_pose_is_named_with_its_frame(tmp_path: Path):
+    src = RECORDINGS / "drop_on_table.mcap"
+    target_frame = 100
+
+    def edit(topic, index, data):
+        if topic == "/parts" and index == target_frame:
+            msg = json.loads(data)
+            msg["parts"][0]["position"][2] += 1e-12
+            return json.dumps(msg, sort_keys=True, separators=(",", ":")).encode()
+        return data
+
+    tampered = tmp_path / "tampered.mcap"
+    copy_recording(src, tampered, edit)
+    result = run_cli("vade-replay", str(tampered))
+    assert result.returncode == 1, result.stderr
+    assert f"frame {target_frame}" in result.stdout
+    assert "/parts" in result.stdout and "peg" in result.stdout and "position[2]" in result.stdout
+    result = run_cli("vade-replay", str(tampered), "--json")
+    summary = json.loads(result.stdout)
+    assert result.returncode == 1
+    assert summary["match"] is False
+    assert summary["first_divergence"]["frame"] == target_frame
+    assert summary["first_divergence"]["part"] == "peg"
+    assert summary["first_divergence"]["field"] == "position[2]"
+
+
+def test_missing_event_is_a_divergence(tmp_path: Path):
+    def edit(topic, index, data):
+        return None if topic == "/events/ModeChanged" and index == 1 else data
+
+    tampered = tmp_path / "no_event.mcap"
+    copy_recording(RECORDINGS / "drop_on_table.mcap", tampered, edit)
+    summary = replay(Recording(tampered))
+    assert not summary.match
+    assert summary.first_divergence["channel"] == "/events/ModeChanged"
+
+
+def test_embedded_scene_is_enough(tmp_path: Path):
+    """Record from a folder with a mesh file, delete the folder, replay the recording."""
+    import trimesh
+
+    folder = tmp_path / "session"
+    folder.mkdir()
+    trimesh.creation.cylinder(radius=0.02, height=0.06, sections=24).export(folder / "peg.stl")
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+    doc["parts"][0]["shape"] = {"type": "mesh", "file": "peg.stl"}
+    (folder / "s.json").write_text(json.dumps(doc))
+    out = tmp_path / "s.mcap"
+    assert run_cli("vade-record", str(folder / "s.json"), "-o", str(out)).returncode == 0
+    shutil.rmtree(folder)
+    result = run_cli("vade-replay", str(out), process=True)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "match" in result.stdout
+
+
+def test_regenerated_recording_replays(tmp_path: Path):
+    out = tmp_path / "again.mcap"
+    summary = replay(Recording(RECORDINGS / "throw_and_catch.mcap"), out=out)
+    assert summary.match
+    again = replay(Recording(out))
+    assert again.match and again.frames == summary.frames

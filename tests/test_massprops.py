@@ -1,0 +1,115 @@
+"""The CAD mass-property report parser, on reports whose numbers are known independently."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import trimesh
+
+from conftest import make_session
+from vade_replay.errors import SessionError
+from vade_replay.massprops import parse_creo_report
+
+REPORT = """\
+VOLUME = {volume:.7e} MM^3
+SURFACE AREA = 1.7000000e+04 MM^2
+DENSITY = 7.8500000e-06 KILOGRAM / MM^3
+MASS = {mass:.9e} KILOGRAM
+
+CENTER OF GRAVITY with respect to _PRT0001 coordinate frame:
+X   Y   Z   {cx:.9e}  {cy:.9e}  {cz:.9e}  MM
+
+INERTIA with respect to _PRT0001 coordinate frame:  (KILOGRAM * MM^2)
+
+INERTIA TENSOR:
+Ixx Ixy Ixz   9.9e+02 0.0e+00 0.0e+00
+Iyx Iyy Iyz   0.0e+00 9.9e+02 0.0e+00
+Izx Izy Izz   0.0e+00 0.0e+00 9.9e+02
+
+INERTIA at CENTER OF GRAVITY with respect to _PRT0001 coordinate frame:  (KILOGRAM * MM^2)
+
+INERTIA TENSOR:
+Ixx Ixy Ixz  {i[0][0]:.9e} {i[0][1]:.9e} {i[0][2]:.9e}
+Iyx Iyy Iyz  {i[1][0]:.9e} {i[1][1]:.9e} {i[1][2]:.9e}
+Izx Izy Izz  {i[2][0]:.9e} {i[2][1]:.9e} {i[2][2]:.9e}
+
+PRINCIPAL MOMENTS OF INERTIA:  (KILOGRAM * MM^2)
+I1  I2  I3   1.0e+00  2.0e+00  3.0e+00
+"""
+
+
+def _rotated_box():
+    """A 100 x 50 x 20 mm steel box turned 30 degrees about z and moved: known by trimesh."""
+    box = trimesh.creation.box(extents=[100.0, 50.0, 20.0])
+    box.apply_transform(trimesh.transformations.rotation_matrix(np.radians(30), [0, 0, 1]))
+    box.apply_translation([10.0, -5.0, 7.0])
+    box.density = 7.85e-6  # kg / mm^3
+    return box
+
+
+def _report(box, *, products_sign="tensor") -> str:
+    inertia = np.array(box.moment_inertia)
+    if products_sign == "products":
+        inertia = np.where(np.eye(3, dtype=bool), inertia, -inertia)
+    cx, cy, cz = box.center_mass
+    return REPORT.format(volume=box.volume, mass=box.mass, cx=cx, cy=cy, cz=cz, i=inertia)
+
+
+def test_report_in_mm_and_kg_matches_the_geometry():
+    box = _rotated_box()
+    props = parse_creo_report(_report(box), file="box.m_p")
+    assert props.mass_kg == pytest.approx(0.785, rel=1e-9)  # 100 * 50 * 20 mm^3 of steel
+    assert np.allclose(props.center_of_mass, np.array([10.0, -5.0, 7.0]) * 1e-3, atol=1e-12)
+    inertia = np.array(props.inertia_cm)
+    # trimesh's tensor in kg mm^2, converted to kg m^2; the off-diagonals are not zero.
+    assert np.allclose(inertia, np.array(box.moment_inertia) * 1e-6, rtol=1e-8, atol=1e-15)
+    assert abs(inertia[0, 1]) > 1e-4
+    # The closed form of the box about its own axes: m (b^2 + c^2) / 12 etc.
+    moments = np.sort(np.linalg.eigvalsh(inertia))
+    m = 0.785
+    expected = np.sort([m * (0.05**2 + 0.02**2) / 12, m * (0.1**2 + 0.02**2) / 12,
+                        m * (0.1**2 + 0.05**2) / 12])
+    assert np.allclose(moments, expected, rtol=1e-8)
+
+
+def test_products_sign_convention():
+    box = _rotated_box()
+    tensor = parse_creo_report(_report(box), file="a.m_p")
+    products = parse_creo_report(_report(box, products_sign="products"), file="b.m_p",
+                                 products_sign="products")
+    assert np.allclose(tensor.inertia_cm, products.inertia_cm, rtol=1e-12)
+    # Read with the wrong convention the off-diagonals flip sign.
+    wrong = parse_creo_report(_report(box, products_sign="products"), file="c.m_p")
+    assert np.allclose(np.array(wrong.inertia_cm)[0, 1], -np.array(tensor.inertia_cm)[0, 1])
+
+
+@pytest.mark.parametrize("edit, field", [
+    (lambda r: r.replace("MASS =", "WEIGHT ="), "MASS"),
+    (lambda r: r.replace("KILOGRAM * MM^2)\n\nINERTIA TENSOR:\nIxx Ixy Ixz  ", "KILOGRAM * MM^2)\n\nINERTIA TENSOR:\nIxx Ixy Ixz  -"), "INERTIA"),
+    (lambda r: r.replace("MM\n\nINERTIA with", "FURLONG\n\nINERTIA with"), "CENTER OF GRAVITY"),
+])
+def test_bad_reports_name_the_field(edit, field):
+    with pytest.raises(SessionError) as info:
+        parse_creo_report(edit(_report(_rotated_box())), file="bad.m_p")
+    assert "bad.m_p" in str(info.value)
+    assert field in str(info.value)
+
+
+def test_session_reads_a_report_and_rejects_an_open_mesh_without_one():
+    box = _rotated_box()
+    open_mesh = trimesh.creation.box(extents=[0.1, 0.05, 0.02])
+    open_mesh.update_faces(np.arange(len(open_mesh.faces)) != 0)  # one triangle missing
+    stl = open_mesh.export(file_type="stl")
+    part = {"name": "p", "shape": {"type": "mesh", "file": "p.stl"},
+            "pose": {"position": [0, 0, 1.0]}}
+    doc = {"format": "vade-session/1", "name": "t", "parts": [dict(part, density=2700)],
+           "tracker": {"duration_s": 0.1, "devices": {"right_hand": [{"t": 0}]}}}
+    with pytest.raises(SessionError) as info:
+        make_session(doc, {"p.stl": stl}).build_scene()
+    assert "watertight" in str(info.value) and "parts[0]" in str(info.value)
+    doc["parts"] = [dict(part, mass_properties={"file": "p.m_p"})]
+    scene = make_session(json.loads(json.dumps(doc)),
+                         {"p.stl": stl, "p.m_p": _report(box).encode()}).build_scene()
+    assert scene.parts[0].mass_kg == pytest.approx(0.785, rel=1e-9)
