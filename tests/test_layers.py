@@ -1,0 +1,85 @@
+"""Import rules: each third-party library lives in one module; low layers do no file I/O."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = ROOT / "vade_replay"
+
+# library -> the only modules (paths relative to the repo) allowed to import it
+OWNERS = {
+    "trimesh": {"vade_replay/scene.py"},
+    "fcl": {"vade_replay/collision.py"},
+    "mcap": {"vade_replay/recording.py"},
+    "rerun": {"vade_replay/view.py"},
+    "argparse": {"cli/record.py", "cli/replay.py", "cli/goldens.py", "cli/bench.py",
+                 "cli/review.py", "vade_replay/screenshot.py"},
+    "jsonschema": {"vade_replay/session.py"},
+    "playwright": {"vade_replay/screenshot.py"},
+    "scipy": set(),  # tests and benchmarks only
+}
+# Modules that must not touch files: the simulation core.
+NO_IO = ["spatial", "scene", "state", "modes", "events", "frames", "massprops", "step",
+         "collision", "codec", "constraints", "dynamics"]
+IO_NAMES = {"open", "Path", "read_bytes", "read_text", "write_bytes", "write_text"}
+
+
+def _sources():
+    for folder in (PACKAGE, ROOT / "cli"):
+        for path in sorted(folder.rglob("*.py")):
+            yield path.relative_to(ROOT).as_posix(), ast.parse(path.read_text())
+
+
+def _imports(tree: ast.AST) -> set[str]:
+    names = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names.update(alias.name.split(".")[0] for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            names.add(node.module.split(".")[0])
+    return names
+
+
+def test_each_library_has_one_home():
+    offenders = []
+    for rel, tree in _sources():
+        for library in _imports(tree) & set(OWNERS):
+            if rel not in OWNERS[library]:
+                offenders.append(f"{rel} imports {library}")
+    assert not offenders, offenders
+
+
+def test_core_does_no_file_io():
+    offenders = []
+    for rel, tree in _sources():
+        stem = rel.removeprefix("vade_replay/").split("/")[0].removesuffix(".py")
+        if not rel.startswith("vade_replay/") or stem not in NO_IO:
+            continue
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Call):
+                name = getattr(node.func, "id", None) or getattr(node.func, "attr", None)
+                if name in IO_NAMES:
+                    offenders.append(f"{rel}:{node.lineno} calls {name}")
+    assert not offenders, offenders
+
+
+def test_core_does_not_import_the_edges():
+    edges = {"recording", "replay", "session", "view", "cli", "inputs", "screenshot", "bench"}
+    offenders = []
+    for rel, tree in _sources():
+        stem = rel.removeprefix("vade_replay/").split("/")[0].removesuffix(".py")
+        if not rel.startswith("vade_replay/") or stem not in NO_IO:
+            continue
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and node.level > 0:
+                target = (node.module or "").split(".")[0]
+                if target in edges:
+                    offenders.append(f"{rel} imports .{target}")
+    assert not offenders, offenders
+
+
+def test_the_rules_can_fail():
+    tree = ast.parse("import fcl\nopen('x')\n")
+    assert "fcl" in _imports(tree)

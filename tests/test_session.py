@@ -1,0 +1,163 @@
+"""Session files: units converted once, primitives and mesh files, tracker CSV logs."""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+
+import numpy as np
+import pytest
+import trimesh
+
+from conftest import RECORDINGS, make_session, run_records, session_doc
+from vade_replay.errors import SessionError
+
+
+def _scaled(doc: dict, factor: float) -> dict:
+    """The same session written in other length units."""
+    out = copy.deepcopy(doc)
+
+    def pose(p):
+        if p and "position" in p:
+            p["position"] = [v * factor for v in p["position"]]
+
+    for body in out["parts"] + out.get("environment", []):
+        shape = body["shape"]
+        for key in ("size",):
+            if key in shape:
+                shape[key] = [v * factor for v in shape[key]]
+        for key in ("radius", "height", "inner_radius"):
+            if key in shape:
+                shape[key] *= factor
+        pose(body.get("pose"))
+    for frames in out["tracker"]["devices"].values():
+        for kf in frames:
+            pose(kf)
+    return out
+
+
+def test_millimetre_session_equals_metre_session():
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+    doc_mm = _scaled(doc, 1000.0)
+    doc_mm["units"] = "mm"
+    doc_mm["physics"] = {"gravity": [0.0, 0.0, -9800.0], "grab_radius": 50.0,
+                         "contact_tolerance": 0.1}
+    a, b = run_records(doc), run_records(doc_mm)
+    assert [e for r in a for e in r.events] == [e for r in b for e in r.events]
+    for ra, rb in zip(a, b):
+        assert np.allclose(ra.parts[0].position, rb.parts[0].position, atol=1e-9)
+
+
+def test_inch_units_and_gravity_in_inches():
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+    doc_in = _scaled(doc, 1.0 / 0.0254)
+    doc_in["units"] = "in"
+    doc_in["physics"] = {"gravity": [0.0, 0.0, -385.8267716535433]}
+    scene = make_session(doc_in).build_scene()
+    assert scene.physics.gravity[2] == pytest.approx(-9.8, rel=1e-12)
+    assert scene.environment[0].initial_pose.position[2] == pytest.approx(0.72, rel=1e-12)
+
+
+@pytest.mark.parametrize("shape, volume", [
+    ({"type": "box", "size": [0.1, 0.05, 0.02]}, 1e-4),
+    ({"type": "cylinder", "radius": 0.02, "height": 0.1, "sections": 256},
+     math.pi * 0.02**2 * 0.1),
+    ({"type": "tube", "radius": 0.02, "inner_radius": 0.01, "height": 0.1, "sections": 256},
+     math.pi * (0.02**2 - 0.01**2) * 0.1),
+])
+def test_primitive_mass_properties(shape, volume):
+    doc = session_doc(parts=[{"name": "p", "shape": shape, "density": 1000.0}],
+                      right_hand=[{"t": 0}], duration_s=0.1)
+    body = make_session(doc).build_scene().parts[0]
+    assert body.mass_kg == pytest.approx(1000.0 * volume, rel=1e-3)
+
+
+def test_gear_is_a_closed_solid_with_a_bore():
+    shape = {"type": "gear", "radius": 0.04, "height": 0.01, "teeth": 12, "tooth_depth": 0.005,
+             "inner_radius": 0.006}
+    doc = session_doc(parts=[{"name": "g", "shape": shape, "density": 7800.0}],
+                      right_hand=[{"t": 0}], duration_s=0.1)
+    body = make_session(doc).build_scene().parts[0]
+    # Between the root disc and the tip disc, less the bore; centred on its axis.
+    lo = 7800 * math.pi * (0.035**2 - 0.006**2) * 0.01
+    hi = 7800 * math.pi * (0.04**2 - 0.006**2) * 0.01
+    assert lo < body.mass_kg < hi
+    assert np.allclose(body.center_of_mass, 0.0, atol=1e-9)
+
+
+@pytest.mark.parametrize("file_type", ["stl", "obj", "glb", "ply"])
+def test_mesh_files(file_type):
+    mesh = trimesh.creation.box(extents=[0.04, 0.04, 0.08])
+    data = mesh.export(file_type=file_type)
+    data = data.encode() if isinstance(data, str) else data
+    doc = session_doc(parts=[{"name": "p", "shape": {"type": "mesh", "file": f"p.{file_type}"},
+                              "density": 2700.0}], right_hand=[{"t": 0}], duration_s=0.1)
+    body = make_session(doc, {f"p.{file_type}": data}).build_scene().parts[0]
+    # STL, GLB and PLY store float32 vertices.
+    assert body.mass_kg == pytest.approx(2700 * 0.04 * 0.04 * 0.08, rel=1e-6)
+
+
+def test_mesh_in_millimetres_in_a_metre_session():
+    data = trimesh.creation.box(extents=[40.0, 40.0, 80.0]).export(file_type="stl")
+    doc = session_doc(parts=[{"name": "p", "density": 2700.0,
+                              "shape": {"type": "mesh", "file": "p.stl", "units": "mm"}}],
+                      right_hand=[{"t": 0}], duration_s=0.1)
+    body = make_session(doc, {"p.stl": data}).build_scene().parts[0]
+    assert body.mass_kg == pytest.approx(2700 * 0.04 * 0.04 * 0.08, rel=1e-9)
+
+
+CSV = """time,device,x,y,z,q0,q1,q2,q3,grip
+0.000,head,-600,0,1600,1,0,0,0,
+0.000,right_hand,0,0,790,1,0,0,0,0
+0.100,right_hand,0,0,790,1,0,0,0,1
+0.200,right_hand,0,0,900,1,0,0,0,1
+0.300,right_hand,0,0,1000,1,0,0,0,1
+0.300,right_hand,0,0,1000,1,0,0,0,1
+0.400,right_hand,0,0,1100,1,0,0,0,0
+2.000,right_hand,0,0,1100,1,0,0,0,0
+"""
+
+
+def _csv_doc():
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+    doc["tracker"] = {"csv": "log.csv", "csv_units": "mm", "csv_quaternion_order": "wxyz"}
+    return doc
+
+
+def test_tracker_csv_log():
+    session = make_session(_csv_doc(), {"log.csv": CSV.encode()})
+    frames = list(session.tracker_frames())
+    # A duplicated sample at 0.3 s is kept as its own frame with the same time.
+    assert [f.time_ns for f in frames] == [0, 10**8, 2 * 10**8, 3 * 10**8, 3 * 10**8, 4 * 10**8,
+                                           2 * 10**9]
+    hand = frames[2].device("right_hand")
+    assert hand.position == pytest.approx((0.0, 0.0, 0.9)) and hand.grip is True
+    assert frames[-1].device("head").position == pytest.approx((-0.6, 0.0, 1.6))
+    records = run_records(_csv_doc(), {"log.csv": CSV.encode()})
+    kinds = [(r.frame, e.kind) for r in records for e in r.events]
+    assert (1, "PartGrabbed") in kinds and (5, "PartReleased") in kinds
+    assert records[-1].parts[0].mode == "STATIC"  # fell back onto the table
+    assert all(math.isfinite(v) for r in records for v in r.parts[0].linear_velocity)
+
+
+@pytest.mark.parametrize("bad, field", [
+    ("2.5,right_hand,0,0,x,1,0,0,0,0", "line 10"),
+    ("2.5,left_foot,0,0,1,1,0,0,0,0", "device"),
+    ("0.5,right_hand,0,0,1,0,0,0,0,0", "q0..q3"),
+    ("0.1,right_hand,0,0,1,1,0,0,0,0", "time"),
+])
+def test_bad_csv_rows_are_named(bad, field):
+    session = make_session(_csv_doc(), {"log.csv": (CSV + bad + "\n").encode()})
+    with pytest.raises(SessionError) as info:
+        list(session.tracker_frames())
+    assert "log.csv" in str(info.value) and field in str(info.value)
+
+
+def test_seeded_noise_is_reproducible_and_changes_with_the_seed():
+    doc = json.loads((RECORDINGS / "throw_and_catch.json").read_text())
+    a = list(make_session(doc).tracker_frames())
+    b = list(make_session(doc).tracker_frames())
+    doc["tracker"]["noise"]["seed"] = 8
+    c = list(make_session(doc).tracker_frames())
+    assert a == b and a != c
