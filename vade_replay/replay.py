@@ -210,6 +210,7 @@ def record(session: Session, out: str | Path, *,
     """
     out = Path(out)
     scene = session.build_scene()
+    out.parent.mkdir(parents=True, exist_ok=True)
     collision = CollisionWorld(scene)
     summary = RunSummary(session.name, parts=[p.name for p in scene.parts])
     partial = out.with_name(out.name + ".partial")
@@ -286,6 +287,7 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     if out is not None:
         if Path(out).resolve() == recording.path.resolve():
             raise ConfigError("refusing to overwrite the recording being replayed", file=str(out))
+        Path(out).parent.mkdir(parents=True, exist_ok=True)
         writer = RecordingWriter(Path(out), recording.session, scene,
                                  extra_metadata={"replayed_from": str(recording.path)})
     first_time = None
