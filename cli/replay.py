@@ -43,6 +43,9 @@ def main(argv: list[str] | None = None) -> int:
     progress = Progress("replaying", recording.frame_count)
     summary = replay(recording, overrides=overrides, out=args.output, on_frame=progress.update)
     progress.close()
+    if summary.truncated:
+        print(f"warning: {recording.path}: the recording was cut short (no end records); "
+              f"replayed the {summary.frames} complete frames it holds", file=sys.stderr)
     if args.json:
         print_json(summary.__dict__)
     elif summary.match:

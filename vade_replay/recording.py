@@ -12,13 +12,17 @@ from __future__ import annotations
 import json
 import os
 import platform
+import struct
 from dataclasses import asdict, dataclass
 from importlib import metadata as importlib_metadata
 from pathlib import Path
+import struct
 from typing import Iterator
 
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
+from mcap.records import Attachment, Channel, DataEnd, Footer, Header, Message, Metadata, Schema
+from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
 from . import codec
@@ -31,6 +35,7 @@ PROFILE = "vade"
 SESSION_ATTACHMENT = "session.json"
 FILE_ATTACHMENT_PREFIX = "files/"
 CHUNK_SECONDS_NS = 10**9
+_READ_ERRORS = (McapError, OSError, EOFError, ValueError, struct.error, KeyError)
 PACKAGES = ("vade_replay", "numpy", "trimesh", "python-fcl", "mcap", "rerun-sdk", "jsonschema")
 
 
@@ -117,63 +122,93 @@ class RecordedFrame:
 
 
 class Recording:
-    """A recording opened for reading: session from attachments, metadata, frame stream."""
+    """A recording opened for reading: session from attachments, metadata, frame stream.
+
+    It is read as a stream of records, never through the summary at the end of the file, so
+    a recording cut short by a crash still opens: its frames up to the last complete chunk
+    are read, and ``truncated`` says that the end was missing.
+    """
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
         if not self.path.is_file():
             raise RecordingError("no such file", file=str(self.path))
+        self.profile = None
+        self.truncated = False
+        self.metadata: dict[str, dict[str, str]] = {}
+        attachments: dict[str, bytes] = {}
         try:
             with open(self.path, "rb") as stream:
-                reader = make_reader(stream)
-                header = reader.get_header()
-                self.profile = header.profile
-                summary = reader.get_summary()
-                attachments = {a.name: a.data for a in reader.iter_attachments()}
-                self.metadata = {m.name: dict(m.metadata) for m in reader.iter_metadata()}
-        except (McapError, OSError, ValueError, EOFError) as exc:
-            raise RecordingError(f"not a readable MCAP file: {exc}", file=str(self.path)) \
-                from None
+                for record in StreamReader(stream).records:
+                    if isinstance(record, Header):
+                        self.profile = record.profile
+                    elif isinstance(record, Attachment):
+                        attachments[record.name] = record.data
+                    elif isinstance(record, Metadata):
+                        self.metadata[record.name] = dict(record.metadata)
+                    elif isinstance(record, (Schema, Channel, Message)):
+                        break  # the writer puts attachments and metadata before any data
+        except _READ_ERRORS as exc:
+            raise RecordingError(f"not a readable MCAP file: {exc or type(exc).__name__}",
+                                 file=str(self.path)) from None
         if self.profile != PROFILE or SESSION_ATTACHMENT not in attachments:
             raise RecordingError("not a vade_replay recording (no session attachment)",
                                  file=str(self.path))
-        # Frames = tracker messages, known from the summary when the file was closed properly.
-        self.frame_count = None
-        if summary and summary.statistics:
-            for channel_id, channel in summary.channels.items():
-                if channel.topic == codec.TRACKER_TOPIC:
-                    self.frame_count = summary.statistics.channel_message_counts.get(channel_id)
         files = {name[len(FILE_ATTACHMENT_PREFIX):]: data for name, data in attachments.items()
                  if name.startswith(FILE_ATTACHMENT_PREFIX)}
         self.session = parse(attachments[SESSION_ATTACHMENT], files,
                              source=f"{self.path}:{SESSION_ATTACHMENT}")
+        self.frame_count = self._frame_count()
+
+    def _frame_count(self) -> int | None:
+        """Frames = tracker messages, from the summary when the file was closed properly."""
+        try:
+            with open(self.path, "rb") as stream:
+                summary = make_reader(stream).get_summary()
+        except _READ_ERRORS:
+            return None
+        if not summary or not summary.statistics:
+            return None
+        for channel_id, channel in summary.channels.items():
+            if channel.topic == codec.TRACKER_TOPIC:
+                return summary.statistics.channel_message_counts.get(channel_id)
+        return None
 
     def frames(self) -> Iterator[RecordedFrame]:
         """Frames in the order written, streaming chunk by chunk."""
+        topics: dict[int, str] = {}
         current: RecordedFrame | None = None
+        complete = False
         try:
             with open(self.path, "rb") as stream:
-                reader = make_reader(stream)
-                for _, channel, message in reader.iter_messages(log_time_order=False):
-                    topic = channel.topic
-                    if topic == codec.TRACKER_TOPIC:
-                        if current is not None:
-                            yield current
-                        try:
-                            inputs = codec.decode_tracker(message.data)
-                        except RecordingError as exc:
-                            exc.file = str(self.path)
-                            raise RecordingError(exc.message, file=str(self.path),
-                                                 field=exc.field, frame=exc.frame) from None
-                        current = RecordedFrame(inputs, [])
-                    elif topic in codec.CHANNELS:
-                        if current is None:
-                            raise RecordingError(f"{topic} message before the first tracker "
-                                                 "frame", file=str(self.path))
-                        current.derived.append((topic, message.data))
-        except (McapError, EOFError) as exc:
-            frame = current.inputs.frame if current else None
-            raise RecordingError(f"recording is damaged: {exc}", file=str(self.path),
-                                 frame=frame) from None
+                for record in StreamReader(stream).records:
+                    if isinstance(record, Channel):
+                        topics[record.id] = record.topic
+                    elif isinstance(record, Message):
+                        topic = topics.get(record.channel_id)
+                        if topic == codec.TRACKER_TOPIC:
+                            if current is not None:
+                                yield current
+                            current = RecordedFrame(self._decode_inputs(record.data), [])
+                        elif topic in codec.CHANNELS:
+                            if current is None:
+                                raise RecordingError(f"{topic} message before the first "
+                                                     "tracker frame", file=str(self.path))
+                            current.derived.append((topic, record.data))
+                    elif isinstance(record, (DataEnd, Footer)):
+                        complete = True
+        except _READ_ERRORS:
+            complete = False
+        if not complete:
+            # Cut short: the last frame read may lack some of its messages; drop it.
+            self.truncated = True
+            return
         if current is not None:
             yield current
+
+    def _decode_inputs(self, data: bytes) -> TrackerFrame:
+        try:
+            return codec.decode_tracker(data)
+        except RecordingError as exc:
+            raise RecordingError(exc.message, file=str(self.path), field=exc.field,
+                                 frame=exc.frame) from None

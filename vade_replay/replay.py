@@ -71,6 +71,7 @@ class RunSummary:
     first_divergence: dict | None = None
     overrides: dict = field(default_factory=dict)
     counters: dict = field(default_factory=dict)
+    truncated: bool = False
 
     def count(self, record: FrameRecord, first_time_ns: int) -> None:
         self.frames += 1
@@ -311,6 +312,7 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
         raise VadeError("recording holds no frames", file=str(recording.path))
     summary.match = summary.first_divergence is None
     summary.counters = dict(collision.stats)
+    summary.truncated = recording.truncated
     return summary
 
 

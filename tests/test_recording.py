@@ -1,0 +1,44 @@
+"""What a recording carries: chunks of at most a second, attachments, metadata, times."""
+
+from __future__ import annotations
+
+import json
+
+from mcap.reader import make_reader
+
+from conftest import RECORDINGS
+from vade_replay.recording import Recording
+
+
+def test_chunks_span_at_most_a_second_and_are_zstd():
+    with open(RECORDINGS / "throw_and_catch.mcap", "rb") as f:
+        summary = make_reader(f).get_summary()
+    assert len(summary.chunk_indexes) >= 3  # 3 s of session
+    for chunk in summary.chunk_indexes:
+        assert chunk.compression == "zstd"
+        assert chunk.message_end_time - chunk.message_start_time <= 10**9
+
+
+def test_attachments_and_metadata_make_it_self_contained():
+    with open(RECORDINGS / "drop_on_table.mcap", "rb") as f:
+        reader = make_reader(f)
+        attachments = {a.name: a.data for a in reader.iter_attachments()}
+        metadata = {m.name: m.metadata for m in reader.iter_metadata()}
+    assert attachments["session.json"] == (RECORDINGS / "drop_on_table.json").read_bytes()
+    assert json.loads(metadata["physics"]["gravity_scale_free"]) == 0.25
+    for package in ("numpy", "trimesh", "python-fcl", "mcap", "vade_replay", "python"):
+        assert metadata["versions"][package]
+
+
+def test_log_time_is_simulated_nanoseconds_in_frame_order():
+    with open(RECORDINGS / "drop_on_table.mcap", "rb") as f:
+        times, sequences = [], []
+        for _, channel, message in make_reader(f).iter_messages(log_time_order=False):
+            if channel.topic == "/tracker":
+                data = json.loads(message.data)
+                assert message.log_time == data["time_ns"] == data["frame"] * 10**9 // 60
+                times.append(message.log_time)
+            sequences.append(message.sequence)
+    assert times == sorted(times) and times[0] == 0
+    assert sequences == list(range(len(sequences)))
+    assert Recording(RECORDINGS / "drop_on_table.mcap").frame_count == len(times) == 151
