@@ -23,6 +23,10 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", help="write the regenerated recording here")
     p.add_argument("--set", action="append", default=[], metavar="physics.NAME=VALUE",
                    help="what-if: change a physics parameter (repeatable); SI units")
+    p.add_argument("--rerun", metavar="OUT.rrd",
+                   help="write a rerun review: timeline, states, trajectories, divergence")
+    p.add_argument("--spawn", action="store_true",
+                   help="with --rerun, also open the rerun viewer (when one can start)")
     return p
 
 
@@ -53,6 +57,15 @@ def main(argv: list[str] | None = None) -> int:
               f"{summary.messages_checked} derived messages identical to the recording")
     else:
         print(f"DIVERGED: {summary.first_divergence['text']}")
+    if args.rerun:
+        from vade_replay.review import write_recording_review
+
+        divergence = summary.first_divergence["frame"] if summary.first_divergence else None
+        counts = write_recording_review(recording, args.rerun, overrides=overrides,
+                                        divergence_frame=divergence, spawn=args.spawn)
+        if not args.json:
+            print(f"review: {args.rerun} ({counts['frames']} frames; open with "
+                  f"`rerun {args.rerun}`)")
     if summary.match or overrides:
         return EXIT_OK
     return EXIT_DIVERGED
