@@ -171,9 +171,12 @@ def test_meshes_are_static_and_transforms_come_once_per_frame(single):
 
 def test_both_timelines_carry_frame_and_sim_time(single):
     _, _, store = single
-    (columns,) = [c for is_static, c in store["/world/recorded/parts/peg"] if not is_static]
-    assert columns["frame"] == list(range(N_FRAMES))
-    assert columns["sim_time"] == [f * DT_NS for f in range(N_FRAMES)]
+    stamps = sorted(
+        (frame, sim_time)
+        for is_static, columns in store["/world/recorded/parts/peg"] if not is_static
+        for frame, sim_time in zip(columns["frame"], columns["sim_time"])
+    )
+    assert stamps == [(f, f * DT_NS) for f in range(N_FRAMES)]
 
 
 def test_state_lanes_hold_each_change_once(single):
@@ -312,3 +315,29 @@ def test_runs_out_of_lockstep_are_refused(tmp_path):
     shifted = (r for r in session(n_frames=4) if r.frame > 0)
     with pytest.raises(ValueError, match="lockstep"):
         write_review(tmp_path / "x.rrd", scene=SCENE, frames=session(n_frames=4), compare_frames=shifted)
+
+
+def test_long_flights_relog_their_strip_a_bounded_number_of_times(tmp_path):
+    def thrown(n_frames):
+        for frame in range(n_frames):
+            part = PartSnapshot("peg", "INSPACE", (0.001 * frame, 1.0, 0.0), (0.0, 0.0, 0.0, 1.0),
+                                (0.09, 0.0, 0.0), (0.0, 0.0, 0.0))
+            yield FrameRecord(inputs=TrackerFrame(frame=frame, time_ns=frame * DT_NS, devices=()),
+                              base=None, parts=(part,))
+
+    path = tmp_path / "long.rrd"
+    write_review(path, scene=SCENE, frames=thrown(1000))
+    strips = rows(read_rrd(path), "/world/recorded/trajectories/peg/0", "LineStrips3D:strips", batch=True)
+    # Every frame up to 64 points, then sparser: about 64 * (1 + ln(n / 64)) updates, not n.
+    assert 64 <= len(strips) <= 300
+    # The last update holds the whole flight.
+    assert len(strips[-1][1][0]) == 1000
+
+
+def test_an_empty_session_still_writes_a_laid_out_file(tmp_path):
+    path = tmp_path / "empty.rrd"
+    counts = write_review(path, scene=SCENE, frames=iter(()))
+    assert counts["frames"] == counts["transforms"] == counts["edges"] == 0
+    reader = RrdReader(path)
+    assert len(reader.blueprints()) == 1
+    assert "/world/environment/table" in read_rrd(path)

@@ -26,7 +26,7 @@ from __future__ import annotations
 import itertools
 import math
 import socket
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -118,12 +118,14 @@ def write_review(
         rec.set_sinks(rr.GrpcSink(), rr.FileSink(str(path)))
     else:
         rec.save(str(path))
+    blueprint = blueprint_from_runs(with_comparison=has_compare)
+
+    def send_blueprint() -> None:
+        # After the first frame is flushed, so the viewer knows the timeline the layout names.
+        rec.flush()
+        rec.send_blueprint(blueprint, make_active=True, make_default=True)
+
     try:
-        rec.send_blueprint(
-            blueprint_from_runs(label=label, compare_label=compare_label if has_compare else None),
-            make_active=True,
-            make_default=True,
-        )
         _log_world_static(rec, scene=scene)
         counts = _log_runs(
             rec,
@@ -133,6 +135,7 @@ def write_review(
             label=label,
             compare_label=compare_label,
             divergence_frame=divergence_frame,
+            on_first_frame=send_blueprint,
         )
         rec.flush()
     finally:
@@ -140,14 +143,14 @@ def write_review(
     return counts
 
 
-def blueprint_from_runs(*, label: str, compare_label: str | None = None) -> rrb.Blueprint:
-    """The review's layout: 3D scene and state lanes on the left; diagram, plots, log on the right."""
+def blueprint_from_runs(*, with_comparison: bool) -> rrb.Blueprint:
+    """The review's layout: scene, state lanes and events left; state diagram and plots right."""
     plots = [
         rrb.TimeSeriesView(origin="plots/speed", name="Speed (m/s)"),
         rrb.TimeSeriesView(origin="plots/angular_speed", name="Angular speed (rad/s)"),
         rrb.TimeSeriesView(origin="plots/energy", name="Energy KE+PE (J)"),
     ]
-    if compare_label is not None:
+    if with_comparison:
         plots += [
             rrb.TimeSeriesView(origin="plots/difference/position_m", name="Position difference (m)"),
             rrb.TimeSeriesView(origin="plots/difference/rotation_rad", name="Rotation difference (rad)"),
@@ -164,22 +167,26 @@ def blueprint_from_runs(*, label: str, compare_label: str | None = None) -> rrb.
         rrb.Horizontal(
             rrb.Vertical(
                 rrb.Spatial3DView(origin="world", name="Scene"),
-                rrb.StateTimelineView(
-                    origin="/", contents=["states/**", "markers/**"], name="Part states"
-                ),
-                row_shares=[3, 1],
+                rrb.StateTimelineView(origin="/", contents=["states/**", "markers/**"], name="Part states"),
+                rrb.TextLogView(origin="/", contents=["events/**", "markers/**"], name="Events"),
+                row_shares=[3, 1.2, 1.2],
             ),
             rrb.Vertical(
-                rrb.GraphView(origin="state_diagram", name="State diagram", **no_forces),
+                rrb.GraphView(
+                    origin="state_diagram",
+                    name="State diagram",
+                    visual_bounds=rrb.VisualBounds2D(x_range=[-320, 320], y_range=[-270, 270]),
+                    **no_forces,
+                ),
                 rrb.Tabs(*plots, active_tab=0),
-                rrb.TextLogView(origin="/", contents=["events/**", "markers/**"], name="Events"),
-                row_shares=[2, 2, 1.5],
+                row_shares=[1, 1],
             ),
             column_shares=[3, 2],
         ),
         rrb.BlueprintPanel(state="collapsed"),
         rrb.SelectionPanel(state="collapsed"),
-        rrb.TimePanel(state="expanded", timeline="frame"),
+        # Opens on the last frame: whole state lanes, all transitions counted; scrub back from there.
+        rrb.TimePanel(state="collapsed", timeline="frame", play_state="following"),
     )
 
 
@@ -192,6 +199,7 @@ def _log_runs(
     label: str,
     compare_label: str,
     divergence_frame: int | None,
+    on_first_frame: Callable[[], None],
 ) -> dict:
     main = _RunLogger(rec, scene=scene, label=label, ghost=False)
     other = None
@@ -199,7 +207,7 @@ def _log_runs(
         other = _RunLogger(rec, scene=scene, label=compare_label, ghost=True)
     diagram = _StateDiagram(rec)
     counts = {"frames": 0, "compared_frames": 0}
-    marked = False
+    marked = started = False
     for record, compared in _lockstep(frames, compare_frames):
         current = record if record is not None else compared
         rec.set_time("frame", sequence=current.frame)
@@ -218,6 +226,11 @@ def _log_runs(
         if divergence_frame is not None and not marked and current.frame >= divergence_frame:
             _log_divergence(rec, frame=divergence_frame, record=record, compared=compared)
             marked = True
+        if not started:
+            on_first_frame()
+            started = True
+    if not started:
+        on_first_frame()
     main.finish()
     if other is not None:
         other.finish()
@@ -397,12 +410,16 @@ class _RunLogger:
 class _StateDiagram:
     """The seven modes on a circle, the transitions used so far, the occupied modes lit."""
 
+    # Around the circle in this order, the common transitions join neighbours.
+    CIRCLE = ("INHAND", "ONTOOL", "PLACED", "ONBASESTATIC", "ONBASESLIDE", "STATIC", "INSPACE")
+
     def __init__(self, rec: rr.RecordingStream) -> None:
         self.rec = rec
+        n = len(self.CIRCLE)
         self.positions = {
-            mode: (220.0 * math.cos(2 * math.pi * i / len(MODES) - math.pi / 2),
-                   220.0 * math.sin(2 * math.pi * i / len(MODES) - math.pi / 2))
-            for i, mode in enumerate(MODES)
+            mode: (220.0 * math.cos(angle), 220.0 * math.sin(angle))
+            for i, mode in enumerate(self.CIRCLE)
+            for angle in (2 * math.pi * i / n - math.pi / 2,)
         }
 
     def log(self, *, modes: dict[str, str], transitions: dict[tuple[str, str], int]) -> None:
@@ -425,7 +442,7 @@ class _StateDiagram:
             # Left of the direction of travel, so A->B and B->A labels do not overlap.
             ids.append(f"{src}->{dst}")
             labels.append(f"×{count}")
-            colors.append(0xDDDDDDFF)
+            colors.append(0x606060FF)
             positions.append((x0 + dx / 2 - 18.0 * dy / length, y0 + dy / 2 + 18.0 * dx / length))
             radii.append(2.0)
         self.rec.log(
@@ -460,7 +477,8 @@ def _log_pose_difference(rec: rr.RecordingStream, *, record: FrameRecord, compar
         name = rr.escape_entity_path_part(part.name)
         distance_m = math.dist(part.position, other.position)
         rec.log(f"plots/difference/position_m/{name}", rr.Scalars(distance_m))
-        rec.log(f"plots/difference/rotation_rad/{name}", rr.Scalars(_rotation_angle(part.rotation_xyzw, other.rotation_xyzw)))
+        angle_rad = _rotation_angle(part.rotation_xyzw, other.rotation_xyzw)
+        rec.log(f"plots/difference/rotation_rad/{name}", rr.Scalars(angle_rad))
 
 
 def _log_divergence(
@@ -469,24 +487,24 @@ def _log_divergence(
     # Logged at the divergence frame itself, even if the stream skipped it.
     rec.set_time("frame", sequence=frame)
     text = f"Runs diverge at frame {frame}"
+    differing = list(record.parts) if record is not None else []
     if record is not None and compared is not None:
         others = {part.name: part for part in compared.parts}
-        differing = [
-            part.name for part in record.parts
-            if part.name in others and (part.mode, part.position, part.rotation_xyzw)
-            != (others[part.name].mode, others[part.name].position, others[part.name].rotation_xyzw)
-        ]
+        differing = [part for part in record.parts if others.get(part.name) != part]
         if differing:
-            text += f": {', '.join(differing)}"
+            text += f": {', '.join(part.name for part in differing)}"
     rec.log("markers/divergence", rr.TextLog(text, level=rr.TextLogLevel.ERROR), rr.StateChange(state="DIVERGED"))
     rec.log("markers/divergence", rr.StateConfiguration(values=["DIVERGED"], colors=[0xE04040FF]), static=True)
-    if record is not None:
-        points = [part.position for part in record.parts]
-        if points:
-            rec.log(
-                "world/markers/divergence",
-                rr.Points3D(points, colors=[0xE04040FF], radii=[0.015], labels=[f"diverged @ {frame}"] * len(points)),
-            )
+    if differing:
+        rec.log(
+            "world/markers/divergence",
+            rr.Points3D(
+                [part.position for part in differing],
+                colors=[0xE04040FF],
+                radii=[0.015],
+                labels=[f"{part.name} diverges @ {frame}" for part in differing],
+            ),
+        )
 
 
 def _log_world_static(rec: rr.RecordingStream, *, scene: SceneInfo) -> None:
@@ -538,7 +556,8 @@ def _world_cm(part: PartSnapshot, mesh: MeshInfo | None) -> tuple[float, float, 
     if mesh is None:
         return tuple(float(x) for x in part.position)
     offset = _matrix_from_quat(part.rotation_xyzw) @ np.asarray(mesh.center_of_mass, dtype=np.float64)
-    return (part.position[0] + float(offset[0]), part.position[1] + float(offset[1]), part.position[2] + float(offset[2]))
+    x, y, z = part.position
+    return (x + float(offset[0]), y + float(offset[1]), z + float(offset[2]))
 
 
 def _matrix_from_quat(q: tuple) -> np.ndarray:
