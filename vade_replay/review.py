@@ -50,7 +50,7 @@ def write_recording_review(recording: Recording, out: str | Path, *,
     compare = None
     label = "replayed"
     if applied:
-        label = "what-if " + ", ".join(f"{k}={v}" for k, v in sorted(applied.items()))
+        label = "what_if"  # an entity path segment; the changes are in the replay summary
     if applied or divergence_frame is not None:
         compare = simulate(scene, (f.inputs for f in recording.frames()))
     return write_review(Path(out), scene=scene_info(base_scene), frames=_recorded(recording),
