@@ -134,3 +134,22 @@ def test_what_if_replay_runs_and_leaves_the_original_alone(tmp_path):
     assert summary["match"] is False  # full gravity: the drop differs from the recording
     assert golden.read_bytes() == before
     assert out.exists()
+
+
+def test_a_run_that_fails_part_way_keeps_what_it_recorded(tmp_path):
+    from test_session import CSV, _csv_doc
+
+    doc = _csv_doc()
+    (tmp_path / "log.csv").write_text(CSV + "2.5,right_hand,0,0,oops,1,0,0,0,0\n")
+    out = tmp_path / "run.mcap"
+    out.write_bytes(b"an older recording")
+    result = run_cli("vade-record", str(_write(tmp_path, doc)), "-o", str(out))
+    _assert_clean_error(result, "log.csv", "line 10")
+    assert out.read_bytes() == b"an older recording"  # not clobbered
+    partial = tmp_path / "run.mcap.partial"
+    assert str(partial) in result.stderr
+    replayed = run_cli("vade-replay", str(partial), "--json")
+    assert replayed.returncode == 0, replayed.stderr
+    # Every frame before the bad row's; the 2.0 s frame was still open (a frame ends when a
+    # row with a later time arrives) when the bad row stopped the run.
+    assert json.loads(replayed.stdout)["frames"] == 6
