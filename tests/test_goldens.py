@@ -93,3 +93,13 @@ def test_regenerated_recording_replays(tmp_path: Path):
     assert summary.match
     again = replay(Recording(out))
     assert again.match and again.frames == summary.frames
+
+
+@pytest.mark.parametrize("session", sorted(RECORDINGS.glob("*.json")), ids=lambda p: p.stem)
+def test_recording_a_session_again_gives_its_golden(session: Path, tmp_path: Path):
+    out = tmp_path / "again.mcap"
+    assert run_cli("vade-record", str(session), "-o", str(out)).returncode == 0
+    again = [(f.inputs, f.derived) for f in Recording(out).frames()]
+    golden = [(f.inputs, f.derived) for f in Recording(session.with_suffix(".mcap")).frames()]
+    assert again == golden
+    assert run_cli("vade-replay", str(out)).returncode == 0
