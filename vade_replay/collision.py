@@ -1,6 +1,16 @@
 """Collision queries with python-fcl; the only module that imports fcl.
 
-``CollisionWorld`` builds every BVH once from the Scene. A query first runs a cheap
+``CollisionWorld`` builds every BVH once from the Scene, including, per constraint of a
+part with the base (``constraints.Mate``), the feature sub-meshes of paper section 6.
+Checks against the base run in base axes, so the base itself never moves in them:
+
+- ``KEEP_COPLANAR``: the part's feature faces against the base's feature faces (the
+  touching parallel faces, or the bore on the shaft): is the part still on the base?
+- ``SKIP_COPLANAR``: the whole part, lifted off the plane by twice the contact tolerance,
+  against the base without its feature faces: is anything else of the base in the way?
+- ``SKIP_COAXIAL`` (``SKIP_CYLINDER``): the whole part against the base without the faces
+  inside the shaft's radius (an equal-diameter coaxial fit is not a collision).
+- ``NOCARE_COPLANAR``: the plain check, whole part against whole base. A query first runs a cheap
 bounding test (a sphere around the part's centre of mass against each object's world
 box) and asks fcl only for the objects that can touch. ``stats`` counts what was asked,
 for the replay summary; it is instrumentation and never feeds back into the simulation.
@@ -9,20 +19,56 @@ for the replay summary; it is instrumentation and never feeds back into the simu
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import Enum
 
 import fcl
 import numpy as np
 
 from . import spatial as sp
+from .constraints import Mate
 from .scene import Body, Scene
 
 
-def _bvh(body: Body) -> fcl.BVHModel:
+class CheckMode(str, Enum):
+    """The coplanar and coaxial options of paper section 6."""
+
+    KEEP_COPLANAR = "KEEP_COPLANAR"
+    SKIP_COPLANAR = "SKIP_COPLANAR"
+    SKIP_COAXIAL = "SKIP_COAXIAL"
+    SKIP_CYLINDER = "SKIP_COAXIAL"  # the paper's other name for the same check
+    NOCARE_COPLANAR = "NOCARE_COPLANAR"
+
+
+def _bvh_of(vertices: np.ndarray, faces: np.ndarray) -> fcl.BVHModel | None:
+    if len(faces) == 0:
+        return None
+    used, local = np.unique(faces, return_inverse=True)
     model = fcl.BVHModel()
-    model.beginModel(len(body.vertices), len(body.faces))
-    model.addSubModel(np.ascontiguousarray(body.vertices), np.ascontiguousarray(body.faces))
+    model.beginModel(len(used), len(faces))
+    model.addSubModel(np.ascontiguousarray(vertices[used], dtype=np.float64),
+                      np.ascontiguousarray(local.reshape(-1, 3), dtype=np.int64))
     model.endModel()
     return model
+
+
+def _bvh(body: Body) -> fcl.BVHModel:
+    return _bvh_of(body.vertices, body.faces)
+
+
+def _distance(a: fcl.CollisionObject, b: fcl.CollisionObject) -> float:
+    return fcl.distance(a, b, fcl.DistanceRequest(), fcl.DistanceResult())
+
+
+@dataclass(frozen=True)
+class _MateGeometry:
+    """BVHs of one constraint, built once: the two feature sub-meshes and the rest."""
+
+    part_feature: fcl.BVHModel | None
+    base_feature: fcl.CollisionObject | None
+    base_rest: fcl.CollisionObject | None
+    base_whole: fcl.CollisionObject
+    sweep: fcl.Cylinder | None      # the part's solid of revolution about its axis
+    sweep_center: float             # middle of the part's span along its axis
 
 
 def _transform(pose: sp.Pose) -> fcl.Transform:
@@ -50,7 +96,75 @@ class CollisionWorld:
             obj = fcl.CollisionObject(_bvh(body), _transform(pose))
             self._fixed.append(_Fixed(body.name, obj, tuple(world.min(axis=0)),
                                       tuple(world.max(axis=0))))
+        self._mates: dict[tuple[str, int], _MateGeometry] = {}
+        if scene.base is not None:
+            base = scene.base
+            identity = fcl.Transform()
+            whole = fcl.CollisionObject(_bvh(base), identity)
+            for body in scene.parts:
+                if body.assembly is None:
+                    continue
+                for index, mate in enumerate(body.assembly.mates):
+                    self._mates[(body.name, index)] = self._mate_geometry(body, base, mate,
+                                                                         whole, identity)
+        self._probe = fcl.Sphere(1e-9)
         self.stats = {"bounding_tests": 0, "fcl_distance_queries": 0}
+
+    @staticmethod
+    def _mate_geometry(body: Body, base: Body, mate: Mate, whole, identity) -> _MateGeometry:
+        def obj(model):
+            return None if model is None else fcl.CollisionObject(model, identity)
+        sweep = None
+        if mate.turn:
+            lo, hi = mate.part_span
+            sweep = fcl.Cylinder(mate.sweep_radius, max(hi - lo, 1e-9))
+        return _MateGeometry(
+            _bvh_of(body.vertices, body.faces[mate.part_feature_faces]),
+            obj(_bvh_of(base.vertices, base.faces[mate.base_feature_faces])),
+            obj(_bvh_of(base.vertices, base.faces[mate.base_rest_faces])), whole, sweep,
+            0.5 * (mate.part_span[0] + mate.part_span[1]))
+
+    def base_distance(self, part: str, mate: int, base_from_part: sp.Pose,
+                      mode: CheckMode, *, lift: sp.Vec3 = sp.ZERO3) -> float:
+        """Distance from the posed part to the base under a section-6 mode (base axes).
+
+        ``inf`` when the mode leaves nothing of the base to check against.
+        """
+        geometry = self._mates[(part, mate)]
+        pose = sp.Pose(sp.add(base_from_part.position, lift), base_from_part.rotation)
+        if mode is CheckMode.KEEP_COPLANAR:
+            model, other = geometry.part_feature, geometry.base_feature
+        elif mode is CheckMode.NOCARE_COPLANAR:
+            model, other = self._part_models[part], geometry.base_whole
+        else:
+            model, other = self._part_models[part], geometry.base_rest
+        if model is None or other is None:
+            return float("inf")
+        self.stats["fcl_distance_queries"] += 1
+        return _distance(fcl.CollisionObject(model, _transform(pose)), other)
+
+    def support_distance(self, part: str, mate: int, point: sp.Vec3) -> float:
+        """Distance from a point on the base plane to the base's feature faces (0: on them)."""
+        geometry = self._mates[(part, mate)]
+        if geometry.base_feature is None:
+            return float("inf")
+        self.stats["fcl_distance_queries"] += 1
+        probe = fcl.CollisionObject(self._probe, fcl.Transform(np.array(point, dtype=np.float64)))
+        return _distance(probe, geometry.base_feature)
+
+    def sweep_clearance(self, part: str, mate: int, axis_point: sp.Vec3,
+                        axis_rotation: sp.Quat) -> float:
+        """Distance from the part's solid of revolution about the shaft to the rest of the
+        base: while positive, no angle of the part can touch it. ``axis_point`` is where the
+        part's own axis point sits (base axes); ``axis_rotation`` takes z onto the shaft."""
+        geometry = self._mates[(part, mate)]
+        if geometry.base_rest is None:
+            return float("inf")
+        center = sp.add(axis_point, sp.quat_rotate(axis_rotation,
+                                                   (0.0, 0.0, geometry.sweep_center)))
+        self.stats["fcl_distance_queries"] += 1
+        cylinder = fcl.CollisionObject(geometry.sweep, _transform(sp.Pose(center, axis_rotation)))
+        return _distance(cylinder, geometry.base_rest)
 
     def environment_near(self, center: sp.Vec3, radius: float) -> tuple[int, ...]:
         """Indices of environment objects whose world box a sphere can touch."""

@@ -15,7 +15,9 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import trimesh
 
+from . import constraints as cn
 from . import spatial as sp
+from .dynamics.onbase import SLIDE_INTEGRATORS, TURN_INTEGRATORS
 from .errors import SessionError
 from .massprops import MassProperties, check, parse_creo_report
 from .modes import Mode
@@ -43,13 +45,35 @@ class Physics:
     grab_radius: float = 0.05
     one_hand_max_mass_kg: float = 5.0
     contact_tolerance: float = 1e-4
+    # Constrained motion on the base (defaults for every constraint that gives none).
+    friction_static: float = 0.3
+    friction_dynamic: float = 0.2
+    friction_rotational: float = 0.0         # N m s / rad
+    slide_integrator: str = "midpoint"       # paper: eq. 4 once per frame
+    turn_integrator: str = "yoshida6"        # paper: eq. 11 once per frame
+    onbase_max_step_s: float = 1.0 / 240.0   # sub-step bound for both
+
+    def __post_init__(self) -> None:
+        if self.slide_integrator not in SLIDE_INTEGRATORS:
+            raise ValueError(f"slide_integrator must be one of {SLIDE_INTEGRATORS}")
+        if self.turn_integrator not in TURN_INTEGRATORS:
+            raise ValueError(f"turn_integrator must be one of {TURN_INTEGRATORS}")
+
+    @property
+    def gravity_slide(self) -> sp.Vec3:
+        return sp.scale(self.gravity, self.gravity_scale_slide)
+
+    @property
+    def gravity_rotation(self) -> sp.Vec3:
+        return sp.scale(self.gravity, self.gravity_scale_rotation)
 
     @property
     def gravity_free(self) -> sp.Vec3:
         return sp.scale(self.gravity, self.gravity_scale_free)
 
 
-PAPER_DEFAULTS = {"free_rotation": "constant_omega", "release_velocity": "two_frame"}
+PAPER_DEFAULTS = {"free_rotation": "constant_omega", "release_velocity": "two_frame",
+                  "slide_integrator": "paper", "turn_integrator": "paper"}
 LENGTH_FIELDS = ("grab_radius", "contact_tolerance")
 
 
@@ -77,6 +101,7 @@ class Body:
     initial_pose: sp.Pose
     initial_mode: Mode
     color: tuple[int, ...] | None = None
+    assembly: cn.Assembly | None = None  # constraints with the base part (parts only)
 
 
 @dataclass(frozen=True, eq=False)
@@ -158,8 +183,23 @@ def _gear_mesh(radius: float, height: float, teeth: int, tooth_depth: float,
 
 def _mesh_from_shape(shape: dict, length_factor: float, files: dict[str, bytes], *,
                      where: str, file: str) -> trimesh.Trimesh:
+    """The shape's triangle mesh in the body's frame, in metres."""
     kind = shape["type"]
     f = length_factor
+    if kind == "compound":
+        # Several shapes, each at its own pose, as one mesh (e.g. a block with a shaft).
+        meshes = []
+        for i, child in enumerate(shape["children"]):
+            mesh = _mesh_from_shape(child, f, files, where=f"{where}.shape.children[{i}]",
+                                    file=file)
+            pose = pose_from_doc(child.get("pose"), f, where=f"{where}.shape.children[{i}].pose",
+                                 file=file)
+            matrix = np.eye(4)
+            matrix[:3, :3] = np.array(sp.quat_to_matrix(pose.rotation))
+            matrix[:3, 3] = pose.position
+            mesh.apply_transform(matrix)
+            meshes.append(mesh)
+        return trimesh.util.concatenate(meshes)
     if kind == "box":
         return trimesh.creation.box(extents=[v * f for v in shape["size"]])
     sections = int(shape.get("sections", 48))
@@ -266,6 +306,65 @@ def _body(doc: dict, length_factor: float, files: dict[str, bytes], *, where: st
         initial_mode=mode, color=tuple(doc["color"]) if "color" in doc else None)
 
 
+def _feature(doc: dict, key: str, f: float) -> tuple[sp.Vec3, sp.Vec3]:
+    return _vec(doc["point"], f), _vec(doc[key])
+
+
+def _assembly(doc: dict, part: Body, base: Body, physics: Physics, f: float, *, where: str,
+              file: str) -> cn.Assembly:
+    """A part's ``assembly`` block: mates with the base and the final pose, in metres."""
+    mates = []
+    for i, mdoc in enumerate(doc.get("constraints", [])):
+        here = f"{where}.constraints[{i}]"
+        kind = mdoc["type"]
+        key = "direction" if kind == "axis" else "normal"
+        if kind == "planes":
+            part_features = [_feature(d, key, f) for d in mdoc["part"]]
+            base_features = [_feature(d, key, f) for d in mdoc["base"]]
+        else:
+            part_features = [_feature(mdoc["part"], key, f)]
+            base_features = [_feature(mdoc["base"], key, f)]
+        tol = mdoc.get("tolerance", {})
+        friction = mdoc.get("friction", {})
+        try:
+            mate = cn.build_mate(
+                name=mdoc.get("name", f"{kind}{i}"), kind=kind,
+                base_points=[p for p, _ in base_features], base_dirs=[d for _, d in base_features],
+                part_points=[p for p, _ in part_features], part_dirs=[d for _, d in part_features],
+                radius=float(mdoc.get("radius", 0.0)) * f,
+                distance_tolerance=float(tol.get("distance",
+                                                 cn.DEFAULT_DISTANCE_TOLERANCE_M / f)) * f,
+                angle_tolerance=math.radians(float(tol.get("angle_deg",
+                                                           cn.DEFAULT_ANGLE_TOLERANCE_DEG))),
+                slide=bool(mdoc.get("slide", True)), turn=bool(mdoc.get("turn", kind == "axis")),
+                static_friction=float(friction.get("static", physics.friction_static)),
+                dynamic_friction=float(friction.get("dynamic", physics.friction_dynamic)),
+                rotational_friction=float(friction.get("rotational",
+                                                       physics.friction_rotational)),
+                leave_when=mdoc.get("leave_when", "center_of_mass_off"),
+                part_vertices=np.asarray(part.vertices), part_faces=np.asarray(part.faces),
+                mass_kg=part.mass_kg, center_of_mass=part.center_of_mass,
+                inertia_cm=part.inertia_cm, base_vertices=np.asarray(base.vertices),
+                base_faces=np.asarray(base.faces), geometry_tol=physics.contact_tolerance)
+        except ValueError as exc:
+            raise SessionError(str(exc), file=file, field=here) from None
+        if kind == "axis" and len(mate.base_feature_faces) == 0:
+            raise SessionError("no base faces lie within the axis radius: check point, "
+                               "direction and radius", file=file, field=f"{here}.base")
+        if kind != "axis" and len(mate.base_feature_faces) == 0:
+            raise SessionError("no base faces lie in the plane: check point and normal",
+                               file=file, field=f"{here}.base")
+        mates.append(mate)
+    final = doc.get("final_pose")
+    final_tol = doc.get("final_tolerance", {})
+    return cn.Assembly(
+        mates=tuple(mates),
+        final_pose=pose_from_doc(final, f, where=f"{where}.final_pose", file=file)
+        if final else None,
+        final_distance=float(final_tol.get("distance", cn.DEFAULT_FINAL_DISTANCE_M / f)) * f,
+        final_angle=math.radians(float(final_tol.get("angle_deg", cn.DEFAULT_FINAL_ANGLE_DEG))))
+
+
 def physics_from_doc(doc: dict, length_factor: float) -> Physics:
     """Physics from a session's ``physics`` block, lengths converted to metres."""
     values = dict(doc)
@@ -295,14 +394,28 @@ def build_scene(session: dict, files: dict[str, bytes], *, file: str = "<session
     base = None
     hand_from_base = sp.IDENTITY
     if "base" in session:
+        # The base part is held in the hand: its mass is not used unless given.
         base = _body(session["base"], f, files, where="base", file=file, mode=Mode.INHAND,
-                     needs_mass=True)
+                     needs_mass="density" in session["base"]
+                     or "mass_properties" in session["base"])
         hand_from_base = pose_from_doc(session["base"].get("hand_from_base"), f,
                                        where="base.hand_from_base", file=file)
     environment = tuple(sorted(
         (_body(doc, f, files, where=f"environment[{i}]", file=file, mode=Mode.STATIC,
                needs_mass=False)
          for i, doc in enumerate(session.get("environment", []))), key=lambda b: b.name))
+    docs = {doc["name"]: (i, doc) for i, doc in enumerate(session["parts"])}
+    with_assembly = []
+    for body in parts:
+        i, doc = docs[body.name]
+        if "assembly" in doc:
+            if base is None:
+                raise SessionError("a part with assembly constraints needs a base part",
+                                   file=file, field=f"parts[{i}].assembly")
+            body = replace(body, assembly=_assembly(doc["assembly"], body, base, physics, f,
+                                                    where=f"parts[{i}].assembly", file=file))
+        with_assembly.append(body)
+    parts = tuple(with_assembly)
     return Scene(name=session["name"], units=units, physics=physics, parts=parts, base=base,
                  hand_from_base=hand_from_base, environment=environment,
                  part_index={b.name: i for i, b in enumerate(parts)})

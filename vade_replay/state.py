@@ -20,6 +20,31 @@ class Held:
 
 
 @dataclass(frozen=True, slots=True)
+class OnBase:
+    """A part constrained on the base: its coordinates relative to the base and their rates.
+
+    ``base_from_snap`` is the part's pose relative to the base when it snapped onto the
+    mate (coordinates zero); the pose at any time is ``constraints.relative_pose``. The
+    ``blocked_*`` fields remember the direction in which base geometry stopped it (a
+    unilateral limit, cleared when the drive points away); ``clear_at``/``clearance`` cache
+    the last measured distance to the rest of the base, so that collision queries can be
+    skipped while the part cannot have closed that gap.
+    """
+
+    mate: int                          # index into the part's Assembly.mates
+    base_from_snap: sp.Pose
+    slide: tuple[float, ...]           # m, along Mate.slide_dirs
+    slide_rate: tuple[float, ...]      # m/s
+    angle: float = 0.0                 # rad, about the base axis (right hand)
+    angle_rate: float = 0.0            # rad/s
+    cm_offset: sp.Vec3 = sp.ZERO3      # r_perp in base axes at angle 0
+    blocked_slide: tuple[float, ...] = ()  # unit vector in slide coordinates, or ()
+    blocked_turn: int = 0              # +1 / -1: turning that way is blocked
+    clear_at: tuple[float, ...] = ()   # slide coordinates where clearance was measured
+    clearance: float = 0.0             # m; 0 means "unknown: query"
+
+
+@dataclass(frozen=True, slots=True)
 class PartState:
     """One part's mode, world pose (of the part frame), CM velocities and mode-specific motion."""
 
@@ -28,7 +53,7 @@ class PartState:
     pose: sp.Pose
     linear_velocity: sp.Vec3 = sp.ZERO3
     angular_velocity: sp.Vec3 = sp.ZERO3
-    motion: object = None  # Held, free.Flight, a constrained motion, or None
+    motion: object = None  # Held, free.Flight, OnBase, or None
 
 
 @dataclass(frozen=True, slots=True)

@@ -11,14 +11,15 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 
+from . import constraints as cn
 from . import spatial as sp
-from .collision import CollisionWorld
-from .dynamics import free, velocity
+from .collision import CheckMode, CollisionWorld
+from .dynamics import free, onbase, velocity
 from .events import ContactMade, Event, GrabRefused, ModeChanged, PartGrabbed, PartReleased
 from .frames import FrameRecord, PartSnapshot, TrackerFrame
 from .modes import Cause, Mode, check_transition
 from .scene import Body, Scene
-from .state import Held, PartState, WorldState
+from .state import Held, OnBase, PartState, WorldState
 
 RIGHT, LEFT = "right_hand", "left_hand"
 _GRABBABLE = (Mode.STATIC, Mode.INSPACE, Mode.ONBASESLIDE, Mode.ONBASESTATIC, Mode.PLACED)
@@ -37,7 +38,12 @@ class _Frame:
     hands: dict[str, sp.Pose] = field(default_factory=dict)
     grips: dict[str, bool] = field(default_factory=dict)
     base_pose: sp.Pose | None = None
+    base_prev: sp.Pose | None = None   # the base pose at the previous frame
     events: list[Event] = field(default_factory=list)
+
+    @property
+    def dt_s(self) -> float:
+        return (self.inputs.time_ns - self.t_prev_ns) * 1e-9
 
     @property
     def t_ns(self) -> int:
@@ -63,11 +69,14 @@ def step(scene: Scene, collision: CollisionWorld, state: WorldState,
          inputs: TrackerFrame) -> tuple[WorldState, tuple[Event, ...]]:
     """Advance the world by one frame of tracker inputs."""
     f = _Frame(scene, collision, inputs, state.time_ns, list(state.parts),
-               base_pose=state.base_pose)
+               base_pose=state.base_pose, base_prev=state.base_pose)
     _read_hands(f, state)
     _move_base(f)
     _follow_hands(f)
     _move_free_parts(f)
+    _check_resting_on_base(f)
+    _move_on_base(f)
+    _carry_with_base(f)
     _releases(f, state)
     _grabs(f, state)
     new_state = WorldState(inputs.frame, inputs.time_ns, tuple(f.parts), f.base_pose,
@@ -187,6 +196,9 @@ def _release(f: _Frame, index: int, hand: str) -> None:
     physics = f.scene.physics
     v, w = part.linear_velocity, part.angular_velocity
     frame = f.inputs.frame
+    if body.assembly is not None and f.base_pose is not None \
+            and _release_on_base(f, index, hand):
+        return
     cm = part.pose.apply(body.center_of_mass)
     near = f.collision.environment_near(cm, body.radius_about_cm + physics.contact_tolerance)
     if near:
@@ -285,6 +297,376 @@ def _time_of_contact(f: _Frame, body: Body, start: free.Flight, near: tuple[int,
         t = t_next
         pose = _flight_pose(f, body, start, t)[3]
     return t, pose, which
+
+
+# --- constrained motion on the base (paper 5.2, 5.3, 6) -----------------------------------
+
+_CA_BASE_ITERATIONS = 64
+_CONTACT_SLACK_M = 1e-9  # round-off allowance for a part moving along an obstacle it touches
+
+
+def _to_base(f: _Frame, world: sp.Vec3) -> sp.Vec3:
+    return sp.quat_rotate(sp.quat_conj(f.base_pose.rotation), world)  # type: ignore[union-attr]
+
+
+def _axis(mate: cn.Mate) -> sp.Vec3 | None:
+    return mate.base_dirs[0] if mate.kind == "axis" else None
+
+
+def _alpha_at_rest(body: Body, mate: cn.Mate, m: OnBase, g: sp.Vec3) -> float:
+    """Angular acceleration from gravity about the shaft at the current angle (g base axes)."""
+    if not mate.turn:
+        return 0.0
+    u, r0 = mate.base_dirs[0], m.cm_offset
+    k = body.mass_kg / mate.inertia_about_axis
+    return k * (math.cos(m.angle) * sp.dot(g, sp.cross(u, r0)) - math.sin(m.angle) * sp.dot(g, r0))
+
+
+def _drive(f: _Frame, body: Body, mate: cn.Mate, m: OnBase) -> tuple[bool, bool, bool]:
+    """At rest on the base now: (gravity lifts it off, it starts sliding, it starts turning)."""
+    physics = f.scene.physics
+    g = _to_base(f, physics.gravity_slide)
+    n_load, lifted = onbase.normal_load(mate.kind, mate.base_dirs, _axis(mate), g)
+    slides = False
+    if mate.slide_dirs:
+        gt = onbase.project_blocked(onbase.tangential(mate.slide_dirs, g), m.blocked_slide)
+        slides = onbase.starts_sliding(gt, n_load, mate.static_friction)
+    alpha = _alpha_at_rest(body, mate, m, _to_base(f, physics.gravity_rotation))
+    turns = alpha != 0.0 and alpha * m.blocked_turn <= 0.0
+    return lifted, slides, turns
+
+
+def _release_on_base(f: _Frame, index: int, hand: str) -> bool:
+    """Release onto the base: at the final pose, or onto the first recognised constraint."""
+    part = f.parts[index]
+    body = f.scene.parts[index]
+    assembly: cn.Assembly = body.assembly  # type: ignore[assignment]
+    base_from_part = f.base_pose.inverse().compose(part.pose)  # type: ignore[union-attr]
+    v, w = part.linear_velocity, part.angular_velocity
+    if cn.at_final_pose(assembly, base_from_part):
+        _place(f, index, Cause.RELEASED_AT_FINAL_POSE, hand=hand)
+        return True
+    for mate_index, mate in enumerate(assembly.mates):
+        snapped = cn.recognise(mate, base_from_part)
+        if snapped is None:
+            continue
+        zeros = tuple(0.0 for _ in mate.slide_dirs)
+        motion = OnBase(mate_index, snapped, zeros, zeros,
+                        cm_offset=cn.cm_offset_base(mate, snapped) if mate.turn else sp.ZERO3)
+        if cn.at_final_pose(assembly, snapped):
+            _place(f, index, Cause.RELEASED_AT_FINAL_POSE, hand=hand)
+            return True
+        lifted, slides, turns = _drive(f, body, mate, motion)
+        if lifted:
+            continue  # gravity pulls it off this plane: not a support
+        # The snap is an inelastic contact: the part starts at rest relative to the base.
+        mode = Mode.ONBASESLIDE if (slides or turns) else Mode.ONBASESTATIC
+        pose = f.base_pose.compose(snapped)  # type: ignore[union-attr]
+        f.events.append(PartReleased(f.inputs.frame, part.name, Cause.RELEASED_ON_BASE.value,
+                                     hand, v, w))
+        f.change_mode(index, PartState(part.name, mode, pose, sp.ZERO3, sp.ZERO3, motion),
+                      Cause.RELEASED_ON_BASE)
+        return True
+    return False
+
+
+def _place(f: _Frame, index: int, cause: Cause, *, hand: str | None = None) -> None:
+    part = f.parts[index]
+    final = f.scene.parts[index].assembly.final_pose  # type: ignore[union-attr]
+    if hand is not None:
+        f.events.append(PartReleased(f.inputs.frame, part.name, cause.value, hand,
+                                     part.linear_velocity, part.angular_velocity))
+    pose = f.base_pose.compose(final)  # type: ignore[union-attr]
+    f.change_mode(index, PartState(part.name, Mode.PLACED, pose), cause)
+
+
+def _base_motion(f: _Frame, point_base: sp.Vec3) -> tuple[sp.Vec3, sp.Vec3]:
+    """World velocity of a base-fixed point and the base's angular velocity, over the frame."""
+    dt = f.dt_s
+    if f.base_prev is None or dt <= 0.0:
+        return sp.ZERO3, sp.ZERO3
+    v = sp.scale(sp.sub(f.base_pose.apply(point_base), f.base_prev.apply(point_base)),  # type: ignore[union-attr]
+                 1.0 / dt)
+    rel = sp.quat_mul(f.base_pose.rotation, sp.quat_conj(f.base_prev.rotation))  # type: ignore[union-attr]
+    return v, sp.scale(sp.quat_to_rotvec(rel), 1.0 / dt)
+
+
+def _relative_rates(body: Body, mate: cn.Mate, m: OnBase, slide_rate, angle, angle_rate):
+    """CM velocity and angular velocity relative to the base, in base axes."""
+    v = sp.ZERO3
+    for rate, e in zip(slide_rate, mate.slide_dirs):
+        v = sp.add(v, sp.scale(e, rate))
+    if not mate.turn or angle_rate == 0.0:
+        return v, sp.ZERO3
+    u = mate.base_dirs[0]
+    r = sp.quat_rotate(sp.quat_axis_angle(u, angle), m.cm_offset)
+    return sp.add(v, sp.scale(sp.cross(u, r), angle_rate)), sp.scale(u, angle_rate)
+
+
+def _leave(f: _Frame, index: int, cause: Cause, rel: sp.Pose, v_rel: sp.Vec3,
+           w_rel: sp.Vec3) -> None:
+    """Off the base into free flight, with the base's own motion added to the part's."""
+    part = f.parts[index]
+    body = f.scene.parts[index]
+    pose = f.base_pose.compose(rel)  # type: ignore[union-attr]
+    v_base, w_base = _base_motion(f, rel.apply(body.center_of_mass))
+    q = f.base_pose.rotation  # type: ignore[union-attr]
+    v = sp.add(sp.quat_rotate(q, v_rel), v_base)
+    w = sp.add(sp.quat_rotate(q, w_rel), w_base)
+    flight = free.start(t_ns=f.t_ns, cm=pose.apply(body.center_of_mass), velocity=v,
+                        omega_world=w, world_from_part=pose,
+                        part_from_principal=body.part_from_principal,
+                        principal_moments=body.principal_moments)
+    f.change_mode(index, PartState(part.name, Mode.INSPACE, pose, v, w, flight), cause)
+
+
+def _check_resting_on_base(f: _Frame) -> None:
+    """ONBASESTATIC: does gravity now pull it off, or overcome static friction?"""
+    for index, part in enumerate(f.parts):
+        if part.mode is not Mode.ONBASESTATIC or f.base_pose is None:
+            continue
+        body = f.scene.parts[index]
+        m: OnBase = part.motion  # type: ignore[assignment]
+        mate = body.assembly.mates[m.mate]  # type: ignore[union-attr]
+        lifted, slides, turns = _drive(f, body, mate, m)
+        if lifted:
+            rel = cn.relative_pose(mate, m.base_from_snap, m.slide, m.angle)
+            _leave(f, index, Cause.LIFTED_OFF, rel, sp.ZERO3, sp.ZERO3)
+        elif slides or turns:
+            f.change_mode(index, replace(part, mode=Mode.ONBASESLIDE), Cause.FRICTION_BROKEN)
+
+
+def _carry_with_base(f: _Frame) -> None:
+    """Parts at rest on the base or placed ride with it exactly."""
+    if f.base_pose is None:
+        return
+    for index, part in enumerate(f.parts):
+        if part.mode is Mode.ONBASESTATIC:
+            m: OnBase = part.motion  # type: ignore[assignment]
+            mate = f.scene.parts[index].assembly.mates[m.mate]  # type: ignore[union-attr]
+            rel = cn.relative_pose(mate, m.base_from_snap, m.slide, m.angle)
+            f.parts[index] = replace(part, pose=f.base_pose.compose(rel),
+                                     linear_velocity=sp.ZERO3, angular_velocity=sp.ZERO3)
+        elif part.mode is Mode.PLACED:
+            final = f.scene.parts[index].assembly.final_pose  # type: ignore[union-attr]
+            if final is not None:
+                f.parts[index] = replace(part, pose=f.base_pose.compose(final))
+
+
+def _move_on_base(f: _Frame) -> None:
+    for index, part in enumerate(f.parts):
+        if part.mode is Mode.ONBASESLIDE and f.base_pose is not None:
+            _slide_and_turn(f, index)
+
+
+def _clear_blocks(f: _Frame, body: Body, mate: cn.Mate, m: OnBase) -> OnBase:
+    """Forget a blocked direction once gravity drives the part away from it."""
+    if m.blocked_slide:
+        gt = onbase.tangential(mate.slide_dirs, _to_base(f, f.scene.physics.gravity_slide))
+        if sum(a * b for a, b in zip(gt, m.blocked_slide)) < 0.0:
+            m = replace(m, blocked_slide=())
+    if m.blocked_turn:
+        alpha = _alpha_at_rest(body, mate, m, _to_base(f, f.scene.physics.gravity_rotation))
+        if alpha * m.blocked_turn < 0.0 or m.angle_rate * m.blocked_turn < 0.0:
+            m = replace(m, blocked_turn=0)
+    return m
+
+
+def _slide_and_turn(f: _Frame, index: int) -> None:
+    """ONBASESLIDE: integrate the coordinates, then the two checks of section 6."""
+    part = f.parts[index]
+    body = f.scene.parts[index]
+    physics = f.scene.physics
+    m: OnBase = part.motion  # type: ignore[assignment]
+    mate = body.assembly.mates[m.mate]  # type: ignore[union-attr]
+    dt = f.dt_s
+    m = _clear_blocks(f, body, mate, m)
+    x1, v1, a1, w1 = m.slide, m.slide_rate, m.angle, m.angle_rate
+    if dt > 0.0:
+        q0 = (f.base_prev or f.base_pose).rotation  # type: ignore[union-attr]
+        q1 = f.base_pose.rotation  # type: ignore[union-attr]
+        steps = onbase.substeps(dt, physics.onbase_max_step_s)
+        if mate.slide_dirs:
+            path = onbase.GravityPath(physics.gravity_slide, q0, q1)
+            x1, v1 = onbase.slide(mate.kind, mate.base_dirs, _axis(mate), mate.slide_dirs, path,
+                                  m.slide, m.slide_rate, dt, steps,
+                                  f_static=mate.static_friction, f_dynamic=mate.dynamic_friction,
+                                  blocked=m.blocked_slide, integrator=physics.slide_integrator)
+        if mate.turn:
+            path = onbase.GravityPath(physics.gravity_rotation, q0, q1)
+            force = onbase.TurnForce(path, mate.base_dirs[0], m.cm_offset, body.mass_kg,
+                                     mate.inertia_about_axis, mate.rotational_friction)
+            if not (m.blocked_turn and m.angle_rate == 0.0):
+                a1, w1 = onbase.turn(force, m.angle, m.angle_rate, dt, steps,
+                                     physics.turn_integrator)
+    if not all(math.isfinite(c) for c in (*x1, *v1, a1, w1)):
+        f.change_mode(index, replace(part, mode=Mode.ONBASESTATIC, linear_velocity=sp.ZERO3,
+                                     angular_velocity=sp.ZERO3,
+                                     motion=replace(m, slide_rate=tuple(0.0 for _ in v1),
+                                                    angle_rate=0.0)), Cause.NUMERICAL_FAULT)
+        return
+    blocked = None
+    if x1 != m.slide or a1 != m.angle:
+        m, blocked = _sweep(f, body, mate, m, x1, a1)
+        if blocked is not None:
+            lam, blame_slide, blame_turn = blocked
+            x1 = tuple(x0 + lam * (xe - x0) for x0, xe in zip(m.slide, x1))
+            a1 = m.angle + lam * (a1 - m.angle)
+    rel = cn.relative_pose(mate, m.base_from_snap, x1, a1)
+    if not _still_on_base(f, body, mate, m, rel, x1):
+        v_rel, w_rel = _relative_rates(body, mate, m, v1, a1, w1)
+        _leave(f, index, Cause.SLID_OFF, rel, v_rel, w_rel)
+        return
+    new = replace(m, slide=x1, slide_rate=v1, angle=a1, angle_rate=w1)
+    if blocked is not None:
+        new = _stop_at_block(new, m, x1, a1, blame_slide, blame_turn)  # type: ignore[possibly-undefined]
+        f.events.append(ContactMade(f.inputs.frame, part.name, Cause.BLOCKED.value,
+                                    f.scene.base.name,  # type: ignore[union-attr]
+                                    f.t_prev_ns + int(lam * (f.t_ns - f.t_prev_ns))))  # type: ignore[possibly-undefined]
+    if body.assembly.final_pose is not None and cn.at_final_pose(body.assembly, rel):  # type: ignore[union-attr]
+        _place(f, index, Cause.REACHED_FINAL_POSE)
+        return
+    v_rel, w_rel = _relative_rates(body, mate, new, new.slide_rate, new.angle, new.angle_rate)
+    q = f.base_pose.rotation  # type: ignore[union-attr]
+    moved = replace(part, pose=f.base_pose.compose(rel),  # type: ignore[union-attr]
+                    linear_velocity=sp.quat_rotate(q, v_rel),
+                    angular_velocity=sp.quat_rotate(q, w_rel), motion=new)
+    at_rest = all(v == 0.0 for v in new.slide_rate) and new.angle_rate == 0.0
+    if at_rest:
+        _, slides, turns = _drive(f, body, mate, new)
+        if not (slides or turns):
+            cause = Cause.BLOCKED if blocked is not None else Cause.FRICTION_HELD
+            f.change_mode(index, replace(moved, mode=Mode.ONBASESTATIC, linear_velocity=sp.ZERO3,
+                                         angular_velocity=sp.ZERO3), cause)
+            return
+    f.parts[index] = moved
+
+
+def _stop_at_block(new: OnBase, old: OnBase, x1, a1, blame_slide: bool,
+                   blame_turn: bool) -> OnBase:
+    """An inelastic stop: the rate into the obstacle goes to zero, the rest is kept."""
+    if blame_slide:
+        d = [xe - x0 for x0, xe in zip(old.slide, x1)]
+        n = math.sqrt(sum(c * c for c in d))
+        if n > 0.0:
+            d = [c / n for c in d]
+        else:
+            d = [c / (math.sqrt(sum(r * r for r in old.slide_rate)) or 1.0)
+                 for c in old.slide_rate]
+        into = sum(a * b for a, b in zip(new.slide_rate, d))
+        rate = tuple(v - max(0.0, into) * c for v, c in zip(new.slide_rate, d))
+        new = replace(new, slide_rate=rate, blocked_slide=tuple(d))
+    if blame_turn:
+        direction = a1 - old.angle or new.angle_rate
+        new = replace(new, angle_rate=0.0, blocked_turn=1 if direction > 0.0 else -1)
+    return replace(new, clearance=0.0, clear_at=())
+
+
+def _sweep(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, x1: tuple[float, ...], a1: float):
+    """SKIP_COPLANAR / SKIP_COAXIAL along the frame's path in coordinates, by conservative
+    advancement: at distance d, no point of the part moves more than ``|dx| + rho |da|``
+    per unit of the path parameter, so a step of ``(d - tol/2) / that`` never enters the
+    base. Returns the motion with an updated clearance cache and ``None`` or
+    ``(lambda, blame_slide, blame_turn)`` where the part touched (within the tolerance)."""
+    tol = f.scene.physics.contact_tolerance
+    x0, a0 = m.slide, m.angle
+    dx = math.sqrt(sum((b - a) ** 2 for a, b in zip(x0, x1)))
+    da = abs(a1 - a0)
+    # The cheap bound: the last measured clearance, minus how far the part can have come.
+    if m.clearance > 0.0 and m.clear_at:
+        reach = max(math.sqrt(sum((a - c) ** 2 for a, c in zip(x, m.clear_at))) for x in (x0, x1))
+        if reach < m.clearance - tol:
+            return m, None
+    if mate.kind == "axis":
+        mode, lift = CheckMode.SKIP_COAXIAL, sp.ZERO3
+    else:
+        mode = CheckMode.SKIP_COPLANAR
+        lift = sp.ZERO3
+        for n in mate.base_dirs:
+            lift = sp.add(lift, sp.scale(n, 2.0 * tol))
+
+    def distance(x, a) -> float:
+        rel = cn.relative_pose(mate, m.base_from_snap, x, a)
+        return f.collision.base_distance(body.name, m.mate, rel, mode, lift=lift)
+
+    def at(lam):
+        return (tuple(p + lam * (q - p) for p, q in zip(x0, x1)), a0 + lam * (a1 - a0))
+
+    speed = dx + mate.sweep_radius * da
+    d0 = distance(x0, a0)
+    d = d0
+    lam = 0.0
+    hit = None
+    if d0 <= tol:
+        # Starting in contact (after a block): moving along or away from the obstacle is
+        # allowed; going deeper than half the tolerance is not.
+        d_end = distance(x1, a1)
+        hit = 0.0 if d_end < 0.5 * tol - _CONTACT_SLACK_M else None
+        d = d_end
+    else:
+        for _ in range(_CA_BASE_ITERATIONS):
+            step_len = (d - 0.5 * tol) / speed
+            if lam + step_len >= 1.0:
+                d = distance(x1, a1)
+                if d <= tol:
+                    hit = 1.0
+                break
+            lam += step_len
+            d = distance(*at(lam))
+            if d <= tol:
+                hit = lam
+                break
+        else:
+            hit = lam
+    if hit is None:
+        if mate.turn:
+            c, sign = cn.axial_offset(mate, m.base_from_snap)
+            u_p = sp.scale(mate.base_dirs[0], sign)
+            point = sp.add(m.base_from_snap.apply(mate.part_points[0]),
+                           sp.scale(mate.base_dirs[0], x1[0] if x1 else 0.0))
+            clearance = f.collision.sweep_clearance(body.name, m.mate, point,
+                                                    cn._rotation_between((0.0, 0.0, 1.0), u_p))
+        else:
+            clearance = d
+        return replace(m, clear_at=x1, clearance=clearance if clearance > tol else 0.0), None
+    # Which coordinate ran into the base: try each alone from the contact point.
+    blame_slide, blame_turn = bool(x0) and dx > 0.0, mate.turn and da > 0.0
+    if blame_slide and blame_turn:
+        xc, ac = at(hit)
+        blame_slide = distance(x1, ac) < 0.5 * tol
+        blame_turn = distance(xc, a1) < 0.5 * tol
+        if not (blame_slide or blame_turn):
+            blame_slide = blame_turn = True
+    return replace(m, clearance=0.0, clear_at=()), (hit, blame_slide, blame_turn)
+
+
+def _still_on_base(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, rel: sp.Pose,
+                   x: tuple[float, ...]) -> bool:
+    """KEEP_COPLANAR: is the part still on the base (on the shaft, on the plane)?"""
+    tol = f.scene.physics.contact_tolerance
+    if mate.kind == "axis":
+        if not mate.slide_dirs:
+            return True
+        # The bore's span on the shaft, in base axes: a 1-D bound decides all but the edge.
+        c, sign = cn.axial_offset(mate, m.base_from_snap)
+        lo, hi = (c + sign * mate.part_feature_span[0] + x[0],
+                  c + sign * mate.part_feature_span[1] + x[0])
+        lo, hi = min(lo, hi), max(lo, hi)
+        overlap = min(hi, mate.base_feature_span[1]) - max(lo, mate.base_feature_span[0])
+        if overlap > 2.0 * tol:
+            return True
+        if overlap < -2.0 * tol:
+            return False
+        return f.collision.base_distance(body.name, m.mate, rel, CheckMode.KEEP_COPLANAR) <= tol
+    if mate.leave_when == "no_contact":
+        return f.collision.base_distance(body.name, m.mate, rel, CheckMode.KEEP_COPLANAR) <= tol
+    # The part tips over the edge once its centre of mass is no longer above the face.
+    cm = rel.apply(body.center_of_mass)
+    for point, normal in zip(mate.base_points, mate.base_dirs):
+        foot = sp.sub(cm, sp.scale(normal, sp.dot(sp.sub(cm, point), normal)))
+        if f.collision.support_distance(body.name, m.mate, foot) > tol:
+            return False
+    return True
 
 
 # --- snapshots ------------------------------------------------------------------------

@@ -1,0 +1,81 @@
+"""The coplanar / coaxial collision modes of paper section 6, and stopping at contact."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from _onbase import plate_scene
+from vade_replay import constraints as cn
+from vade_replay import session as session_mod
+from vade_replay import spatial as sp
+from vade_replay.collision import CheckMode, CollisionWorld
+from vade_replay.replay import simulate
+
+RECORDINGS = Path(__file__).resolve().parent.parent / "recordings"
+TOL = 1e-4
+
+
+def _sleeve_world():
+    s = session_mod.load(RECORDINGS / "shaft_slide_blocked.json")
+    scene = s.build_scene()
+    return scene, CollisionWorld(scene), scene.parts[0].assembly.mates[0]
+
+
+def test_sleeve_on_shaft_modes():
+    scene, world, mate = _sleeve_world()
+    on_shaft = cn.recognise(mate, sp.Pose((0.0, 0.0, 0.08)))
+    # Equal-diameter coaxial fit: the plain check reports it, SKIP_COAXIAL ignores it.
+    assert world.base_distance("sleeve", 0, on_shaft, CheckMode.NOCARE_COPLANAR) <= TOL
+    assert world.base_distance("sleeve", 0, on_shaft, CheckMode.SKIP_COAXIAL) > 0.01
+    assert world.base_distance("sleeve", 0, on_shaft, CheckMode.KEEP_COPLANAR) <= TOL
+    # Past the shaft's end (top at z = 0.12): KEEP no longer touches.
+    off = sp.Pose((0.0, 0.0, 0.12 + 0.015 + 0.002))
+    assert world.base_distance("sleeve", 0, off, CheckMode.KEEP_COPLANAR) > TOL
+    # Down on the block (top at z = 0.02): SKIP_COAXIAL sees the block.
+    down = sp.Pose((0.0, 0.0, 0.035))
+    assert world.base_distance("sleeve", 0, down, CheckMode.SKIP_COAXIAL) <= TOL
+
+
+def test_block_on_plate_modes():
+    scene = plate_scene(wall=True)
+    world = CollisionWorld(scene)
+    middle = sp.Pose((0.0, 0.0, 0.04))
+    lift = (0.0, 0.0, 2.0 * TOL)
+    assert world.base_distance("cube", 0, middle, CheckMode.NOCARE_COPLANAR) <= TOL
+    assert world.base_distance("cube", 0, middle, CheckMode.SKIP_COPLANAR, lift=lift) > 0.5
+    assert world.base_distance("cube", 0, middle, CheckMode.KEEP_COPLANAR) <= TOL
+    assert world.support_distance("cube", 0, (0.0, 0.0, 0.02)) <= TOL
+    assert world.support_distance("cube", 0, (0.0, -1.01, 0.02)) > TOL
+    # Near the wall (its face at y = 0.98): SKIP_COPLANAR measures the gap to it.
+    near = sp.Pose((0.0, 0.98 - 0.02 - 0.003, 0.04))
+    assert world.base_distance("cube", 0, near, CheckMode.SKIP_COPLANAR, lift=lift) == \
+        pytest.approx(0.003, abs=1e-9)
+
+
+def test_blocked_parts_stop_at_contact_not_inside_and_not_short():
+    for name, mode, lift in (("plane_block_wall", CheckMode.SKIP_COPLANAR, 2.0 * TOL),
+                             ("shaft_slide_blocked", CheckMode.SKIP_COAXIAL, 0.0)):
+        s = session_mod.load(RECORDINGS / f"{name}.json")
+        scene = s.build_scene()
+        world = CollisionWorld(scene)
+        last = None
+        for record in simulate(scene, s.tracker_frames(), collision=world):
+            last = record
+        part, base = last.parts[0], last.base
+        assert part.mode == "ONBASESTATIC"
+        base_pose = sp.Pose(base.position, base.rotation_xyzw)
+        rel = base_pose.inverse().compose(sp.Pose(part.position, part.rotation_xyzw))
+        mate = scene.parts[0].assembly.mates[0]
+        up = sp.scale(mate.base_dirs[0], lift) if mode is CheckMode.SKIP_COPLANAR else sp.ZERO3
+        d = world.base_distance(part.name, 0, rel, mode, lift=up)
+        assert 0.5 * TOL - 1e-9 <= d <= TOL + 1e-9, (name, d)
+
+
+def test_feature_geometry_is_built_once_per_constraint():
+    scene, world, mate = _sleeve_world()
+    assert len(mate.base_feature_faces) > 0 and len(mate.part_feature_faces) > 0
+    assert not mate.base_feature_faces.flags.writeable
+    assert set(world._mates) == {("sleeve", 0)}

@@ -1,0 +1,322 @@
+"""Assembly constraints between a part and the base part (paper 5.2, 5.3; NOTES.md).
+
+A part declares in its session file the mates it makes with the base part, as in CAD:
+
+- ``axis``: a shaft in a hole. A point and a direction on each; the part may slide along
+  and turn about the base's axis (either can be switched off).
+- ``plane``: a plane mate. A point and an outward normal on each; the part slides in the
+  base's plane (a 2-vector) and keeps its orientation relative to the base.
+- ``planes``: two plane mates at once; the part slides along their intersection line.
+
+and its final assembled pose relative to the base. This module holds the frozen,
+scene-time data of a mate (everything that does not change while it runs: the slide
+directions and the shaft in base axes, the moment of inertia about the shaft, the feature
+face sets the collision checks use) and the pure functions that recognise a mate at
+release, snap the part onto it, and compose a part's pose from its coordinates.
+
+The motion state of a constrained part is its coordinate relative to the base (``OnBase``
+in ``state``): slide distance or in-plane 2-vector and the angle about the shaft, with
+their rates. Its world pose is ``base pose * relative pose``, so a part that does not move
+on the base rides with it exactly.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import spatial as sp
+
+KINDS = ("axis", "plane", "planes")
+LEAVE_WHEN = ("center_of_mass_off", "no_contact")
+DEFAULT_DISTANCE_TOLERANCE_M = 0.005
+DEFAULT_ANGLE_TOLERANCE_DEG = 10.0
+DEFAULT_FINAL_DISTANCE_M = 0.002
+DEFAULT_FINAL_ANGLE_DEG = 5.0
+
+
+@dataclass(frozen=True, eq=False)
+class Mate:
+    """One recognisable constraint of a part with the base part; built once with the scene.
+
+    Features are given on both sides: ``base_points``/``base_dirs`` in the base frame,
+    ``part_points``/``part_dirs`` in the part frame (one pair for ``axis`` and ``plane``,
+    two for ``planes``). Directions are unit vectors; for planes they are outward normals.
+    """
+
+    name: str
+    kind: str
+    base_points: tuple[sp.Vec3, ...]
+    base_dirs: tuple[sp.Vec3, ...]
+    part_points: tuple[sp.Vec3, ...]
+    part_dirs: tuple[sp.Vec3, ...]
+    radius: float                      # axis: radius of the shaft / bore (m); else 0
+    distance_tolerance: float          # recognition (m)
+    angle_tolerance: float             # recognition (rad)
+    slide_dirs: tuple[sp.Vec3, ...]    # base frame, orthonormal; () when sliding is off
+    turn: bool                         # axis: may turn about the base axis
+    static_friction: float             # f_s
+    dynamic_friction: float            # f_d
+    rotational_friction: float         # f_r, N m s / rad: torque -f_r w
+    leave_when: str                    # plane: "center_of_mass_off" or "no_contact"
+    inertia_about_axis: float          # J = u.I_cm u + m |r_perp|^2 (kg m^2), axis only
+    cm_offset_part: sp.Vec3            # r_perp in the part frame: CM minus its foot on the axis
+    sweep_radius: float                # farthest part vertex from the part axis (m)
+    part_span: tuple[float, float]     # the whole part along the part axis, from its point
+    part_feature_span: tuple[float, float]  # the bore (feature faces) along the part axis
+    base_feature_span: tuple[float, float]  # the shaft (feature faces) along the base axis
+    part_feature_faces: np.ndarray     # indices into the part's faces (read-only)
+    base_feature_faces: np.ndarray     # indices into the base's faces (read-only)
+    base_rest_faces: np.ndarray        # the base's other faces: what can block the part
+
+
+@dataclass(frozen=True, eq=False)
+class Assembly:
+    """A part's mates with the base and its final assembled pose (``base_from_part``)."""
+
+    mates: tuple[Mate, ...]
+    final_pose: sp.Pose | None
+    final_distance: float              # m
+    final_angle: float                 # rad
+
+
+# --- building (scene time, numpy allowed) -----------------------------------------------
+
+def _frozen_index(values) -> np.ndarray:
+    out = np.asarray(values, dtype=np.int64).reshape(-1)
+    out.setflags(write=False)
+    return out
+
+
+def _axis_distance(vertices: np.ndarray, point: sp.Vec3, direction: sp.Vec3) -> np.ndarray:
+    rel = vertices - np.asarray(point)
+    along = rel @ np.asarray(direction)
+    perp = rel - np.outer(along, np.asarray(direction))
+    return np.sqrt(np.einsum("ij,ij->i", perp, perp))
+
+
+def axis_feature_faces(vertices: np.ndarray, faces: np.ndarray, point: sp.Vec3,
+                       direction: sp.Vec3, radius: float, tol: float) -> np.ndarray:
+    """Faces lying within ``radius + tol`` of an axis: the shaft, or the wall of a bore."""
+    radial = _axis_distance(vertices, point, direction)
+    inside = radial <= radius + tol
+    return np.nonzero(inside[faces].all(axis=1))[0]
+
+
+def plane_feature_faces(vertices: np.ndarray, faces: np.ndarray, point: sp.Vec3,
+                        normal: sp.Vec3, tol: float) -> np.ndarray:
+    """Faces in a plane (within ``tol``) whose outward normal is the plane's normal."""
+    height = np.abs((vertices - np.asarray(point)) @ np.asarray(normal))
+    tri = vertices[faces]
+    face_normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    lengths = np.linalg.norm(face_normals, axis=1)
+    lengths[lengths == 0.0] = 1.0
+    facing = (face_normals @ np.asarray(normal)) / lengths > math.cos(math.radians(1.0))
+    return np.nonzero((height[faces] <= tol).all(axis=1) & facing)[0]
+
+
+def _span(vertices: np.ndarray, point: sp.Vec3, direction: sp.Vec3) -> tuple[float, float]:
+    if len(vertices) == 0:
+        return (0.0, 0.0)
+    along = (vertices - np.asarray(point)) @ np.asarray(direction)
+    return (float(along.min()), float(along.max()))
+
+
+def _orthonormal_pair(n: sp.Vec3) -> tuple[sp.Vec3, sp.Vec3]:
+    """Two unit vectors spanning the plane normal to ``n`` (a fixed, documented choice)."""
+    helper = (1.0, 0.0, 0.0) if abs(n[0]) < 0.9 else (0.0, 1.0, 0.0)
+    e1 = sp.normalize(sp.cross(n, helper))
+    return e1, sp.cross(n, e1)
+
+
+def build_mate(*, name: str, kind: str, base_points, base_dirs, part_points, part_dirs,
+               radius: float, distance_tolerance: float, angle_tolerance: float, slide: bool,
+               turn: bool, static_friction: float, dynamic_friction: float,
+               rotational_friction: float, leave_when: str, part_vertices: np.ndarray, part_faces: np.ndarray,
+               mass_kg: float, center_of_mass: sp.Vec3, inertia_cm: sp.Mat3,
+               base_vertices: np.ndarray, base_faces: np.ndarray, geometry_tol: float) -> Mate:
+    """A ``Mate`` with every invariant computed once: J, spans, feature face sets."""
+    base_dirs = tuple(sp.normalize(d) for d in base_dirs)
+    part_dirs = tuple(sp.normalize(d) for d in part_dirs)
+    if kind == "axis":
+        u_b, u_p = base_dirs[0], part_dirs[0]
+        slide_dirs = (u_b,) if slide else ()
+        part_feature = axis_feature_faces(part_vertices, part_faces, part_points[0], u_p,
+                                          radius, geometry_tol)
+        base_feature = axis_feature_faces(base_vertices, base_faces, base_points[0], u_b,
+                                          radius, geometry_tol)
+        rel = sp.sub(center_of_mass, part_points[0])
+        r_perp = sp.sub(rel, sp.scale(u_p, sp.dot(rel, u_p)))
+        # A CM on the axis to within a nanometre (a symmetric part, up to mesh round-off)
+        # has no gravity torque: it does not turn by itself.
+        if sp.norm(r_perp) < 1e-9:
+            r_perp = sp.ZERO3
+        inertia = sp.dot(u_p, sp.mat_vec(inertia_cm, u_p)) + mass_kg * sp.dot(r_perp, r_perp)
+        sweep = float(_axis_distance(part_vertices, part_points[0], u_p).max())
+        part_span = _span(part_vertices, part_points[0], u_p)
+        part_feature_span = _span(part_vertices[np.unique(part_faces[part_feature])],
+                                  part_points[0], u_p) if len(part_feature) else part_span
+        base_feature_span = _span(base_vertices[np.unique(base_faces[base_feature])],
+                                  base_points[0], u_b) if len(base_feature) else (0.0, 0.0)
+    else:
+        if kind == "plane":
+            slide_dirs = _orthonormal_pair(base_dirs[0]) if slide else ()
+        else:
+            line = sp.cross(base_dirs[0], base_dirs[1])
+            if sp.norm(line) < 1e-6:
+                raise ValueError("the two planes are parallel: they do not define a line")
+            slide_dirs = (sp.normalize(line),) if slide else ()
+        turn = False
+        part_feature = np.unique(np.concatenate([
+            plane_feature_faces(part_vertices, part_faces, p, n, geometry_tol)
+            for p, n in zip(part_points, part_dirs)]))
+        base_feature = np.unique(np.concatenate([
+            plane_feature_faces(base_vertices, base_faces, p, n, geometry_tol)
+            for p, n in zip(base_points, base_dirs)]))
+        r_perp, inertia, sweep = sp.ZERO3, 0.0, 0.0
+        part_span = part_feature_span = base_feature_span = (0.0, 0.0)
+    rest = np.setdiff1d(np.arange(len(base_faces)), base_feature)
+    if kind != "axis":
+        # SKIP_COPLANAR: base faces that lie wholly on or below a mating plane (the plate's
+        # sides and bottom) can never be in the way of a part resting on top of it.
+        below = np.zeros(len(base_vertices), dtype=bool)
+        for p, n in zip(base_points, base_dirs):
+            below |= (base_vertices - np.asarray(p)) @ np.asarray(n) <= geometry_tol
+        rest = rest[~below[base_faces[rest]].all(axis=1)]
+    return Mate(
+        name=name, kind=kind, base_points=tuple(base_points), base_dirs=base_dirs,
+        part_points=tuple(part_points), part_dirs=part_dirs, radius=radius,
+        distance_tolerance=distance_tolerance, angle_tolerance=angle_tolerance,
+        slide_dirs=slide_dirs, turn=turn, static_friction=static_friction,
+        dynamic_friction=dynamic_friction, rotational_friction=rotational_friction,
+        leave_when=leave_when,
+        inertia_about_axis=inertia, cm_offset_part=r_perp, sweep_radius=sweep,
+        part_span=part_span, part_feature_span=part_feature_span,
+        base_feature_span=base_feature_span, part_feature_faces=_frozen_index(part_feature),
+        base_feature_faces=_frozen_index(base_feature), base_rest_faces=_frozen_index(rest))
+
+
+# --- recognition and snapping (step time, plain floats) ---------------------------------
+
+def _angle(a: sp.Vec3, b: sp.Vec3) -> float:
+    """Angle between unit vectors, robust near 0 and pi."""
+    return math.atan2(sp.norm(sp.cross(a, b)), sp.dot(a, b))
+
+
+def _rotation_between(a: sp.Vec3, b: sp.Vec3) -> sp.Quat:
+    """The smallest rotation taking unit vector a to unit vector b."""
+    axis = sp.cross(a, b)
+    s = sp.norm(axis)
+    c = sp.dot(a, b)
+    if s < 1e-12:
+        if c > 0.0:
+            return sp.IDENTITY_QUAT
+        helper = (1.0, 0.0, 0.0) if abs(a[0]) < 0.9 else (0.0, 1.0, 0.0)
+        return sp.quat_axis_angle(sp.cross(a, helper), math.pi)
+    return sp.quat_axis_angle(axis, math.atan2(s, c))
+
+
+def _triad(a: sp.Vec3, b: sp.Vec3) -> sp.Mat3:
+    """Rows of an orthonormal frame built from two non-parallel vectors."""
+    e1 = sp.normalize(a)
+    e3 = sp.normalize(sp.cross(a, b))
+    return (e1, sp.cross(e3, e1), e3)
+
+
+def recognise(mate: Mate, base_from_part: sp.Pose) -> sp.Pose | None:
+    """The snapped ``base_from_part`` if the part's features are within tolerance, else None.
+
+    Snapping removes the misalignment with the smallest rotation (about the part's own
+    feature point) and the offset with the smallest translation, so the part keeps its
+    position along the axis or in the plane and its angle about the axis.
+    """
+    q = base_from_part.rotation
+    dirs = [sp.quat_rotate(q, d) for d in mate.part_dirs]
+    points = [base_from_part.apply(p) for p in mate.part_points]
+    if mate.kind == "axis":
+        u_b = mate.base_dirs[0]
+        u_p = dirs[0] if sp.dot(dirs[0], u_b) >= 0.0 else sp.scale(dirs[0], -1.0)
+        if _angle(u_p, u_b) > mate.angle_tolerance:
+            return None
+        rel = sp.sub(points[0], mate.base_points[0])
+        off = sp.sub(rel, sp.scale(u_b, sp.dot(rel, u_b)))
+        if sp.norm(off) > mate.distance_tolerance:
+            return None
+        fix = _rotation_between(u_p, u_b)
+    elif mate.kind == "plane":
+        target = sp.scale(mate.base_dirs[0], -1.0)
+        if _angle(dirs[0], target) > mate.angle_tolerance:
+            return None
+        if abs(sp.dot(sp.sub(points[0], mate.base_points[0]), mate.base_dirs[0])) \
+                > mate.distance_tolerance:
+            return None
+        fix = _rotation_between(dirs[0], target)
+    else:
+        targets = [sp.scale(n, -1.0) for n in mate.base_dirs]
+        for d, t, p, bp, bn in zip(dirs, targets, points, mate.base_points, mate.base_dirs):
+            if _angle(d, t) > mate.angle_tolerance:
+                return None
+            if abs(sp.dot(sp.sub(p, bp), bn)) > mate.distance_tolerance:
+                return None
+        # The rotation taking the part's normal pair onto the base's (reversed) pair.
+        src, dst = _triad(dirs[0], dirs[1]), _triad(targets[0], targets[1])
+        fix = sp.quat_from_matrix(sp.mat_mul(sp.transpose(dst), src))
+    # Rotate about the (first) feature point, then push the point onto the base feature.
+    pivot = points[0]
+    rotation = sp.quat_normalize(sp.quat_mul(fix, q))
+    position = sp.add(pivot, sp.quat_rotate(fix, sp.sub(base_from_part.position, pivot)))
+    snapped = sp.Pose(position, rotation)
+    if mate.kind == "axis":
+        u_b = mate.base_dirs[0]
+        rel = sp.sub(snapped.apply(mate.part_points[0]), mate.base_points[0])
+        shift = sp.scale(sp.sub(rel, sp.scale(u_b, sp.dot(rel, u_b))), -1.0)
+    else:
+        shift = sp.ZERO3
+        for _ in range(2):  # two planes: the second push does not undo the first
+            for p, bp, bn in zip(mate.part_points, mate.base_points, mate.base_dirs):
+                h = sp.dot(sp.sub(sp.add(snapped.apply(p), shift), bp), bn)
+                shift = sp.sub(shift, sp.scale(bn, h))
+    return sp.Pose(sp.add(snapped.position, shift), snapped.rotation)
+
+
+def at_final_pose(assembly: Assembly, base_from_part: sp.Pose) -> bool:
+    """Whether the part is at its final assembled pose within the stated tolerances."""
+    final = assembly.final_pose
+    if final is None:
+        return False
+    if sp.norm(sp.sub(base_from_part.position, final.position)) > assembly.final_distance:
+        return False
+    return sp.quat_angle_between(base_from_part.rotation, final.rotation) <= assembly.final_angle
+
+
+def relative_pose(mate: Mate, base_from_snap: sp.Pose, slide: tuple[float, ...],
+                  angle: float) -> sp.Pose:
+    """``base_from_part`` at the given coordinates: slide, then turn about the base axis."""
+    pose = base_from_snap
+    if angle != 0.0:
+        p, u = mate.base_points[0], mate.base_dirs[0]
+        turn = sp.quat_axis_angle(u, angle)
+        position = sp.add(p, sp.quat_rotate(turn, sp.sub(pose.position, p)))
+        pose = sp.Pose(position, sp.quat_normalize(sp.quat_mul(turn, pose.rotation)))
+    if slide:
+        shift = sp.ZERO3
+        for x, e in zip(slide, mate.slide_dirs):
+            shift = sp.add(shift, sp.scale(e, x))
+        pose = sp.Pose(sp.add(pose.position, shift), pose.rotation)
+    return pose
+
+
+def cm_offset_base(mate: Mate, base_from_snap: sp.Pose) -> sp.Vec3:
+    """r_perp in base axes at angle 0: from the shaft to the CM, normal to the shaft."""
+    return sp.quat_rotate(base_from_snap.rotation, mate.cm_offset_part)
+
+
+def axial_offset(mate: Mate, base_from_snap: sp.Pose) -> tuple[float, float]:
+    """Where the part's own axis point sits on the base axis at slide 0, and the axis sign."""
+    u_b = mate.base_dirs[0]
+    c = sp.dot(sp.sub(base_from_snap.apply(mate.part_points[0]), mate.base_points[0]), u_b)
+    sign = 1.0 if sp.dot(sp.quat_rotate(base_from_snap.rotation, mate.part_dirs[0]), u_b) >= 0 \
+        else -1.0
+    return c, sign
