@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 from vade_replay import session as session_mod
+from vade_replay.errors import ConfigError
 from vade_replay.recording import Recording
 from vade_replay.replay import record, replay
 
@@ -30,7 +31,15 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     folder = Path(args.dir)
+    if not folder.is_dir():
+        raise ConfigError("no such folder", file=str(folder), field="--dir")
     sessions = sorted(folder.glob("*.json"))
+    if not sessions:
+        raise ConfigError("holds no session files (*.json)", file=str(folder), field="--dir")
+    unknown = sorted(set(args.names) - {s.stem for s in sessions})
+    if unknown:
+        raise ConfigError(f"no session named {', '.join(unknown)} (have "
+                          f"{', '.join(s.stem for s in sessions)})", file=str(folder))
     if args.names:
         sessions = [s for s in sessions if s.stem in args.names]
     failed = 0

@@ -18,7 +18,9 @@ def _parser() -> argparse.ArgumentParser:
         description="Run a VADE session file and record every tracker input, state transition "
                     "and part pose to an MCAP file that replays with nothing else.")
     p.add_argument("session", help="session file (JSON, see schemas/session.schema.json)")
-    p.add_argument("-o", "--output", help="output .mcap (default: SESSION name with .mcap)")
+    p.add_argument("-o", "--output",
+                   help="output .mcap (default: the session file's name with .mcap, in the "
+                        "current folder)")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     return p
 
@@ -26,7 +28,7 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     session = session_mod.load(args.session)
-    out = Path(args.output) if args.output else Path(args.session).with_suffix(".mcap")
+    out = Path(args.output) if args.output else Path(Path(args.session).stem + ".mcap")
     progress = Progress("recording", None)
     summary = record(session, out, on_frame=progress.update)
     progress.close()

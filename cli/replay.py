@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 from vade_replay.errors import ConfigError
-from vade_replay.recording import Recording
+from vade_replay.recording import Recording, ensure_writable
 from vade_replay.replay import replay
 
 from ._common import EXIT_DIVERGED, EXIT_OK, Progress, print_json, run
@@ -22,7 +23,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     p.add_argument("-o", "--output", help="write the regenerated recording here")
     p.add_argument("--set", action="append", default=[], metavar="physics.NAME=VALUE",
-                   help="what-if: change a physics parameter (repeatable); SI units")
+                   help="what-if: replay as if the session's physics said NAME: VALUE (repeatable; "
+                        "JSON value in the session's units)")
     p.add_argument("--rerun", metavar="OUT.rrd",
                    help="write a rerun review: timeline, states, trajectories, divergence")
     p.add_argument("--spawn", action="store_true",
@@ -43,7 +45,11 @@ def _overrides(items: list[str]) -> dict[str, str]:
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     overrides = _overrides(args.set)
+    if args.spawn and not args.rerun:
+        raise ConfigError("--spawn opens the review: give --rerun OUT.rrd too", field="--spawn")
     recording = Recording(args.recording)
+    if args.rerun:
+        ensure_writable(args.rerun)
     progress = Progress("replaying", recording.frame_count)
     summary = replay(recording, overrides=overrides, out=args.output, on_frame=progress.update)
     progress.close()
@@ -61,8 +67,13 @@ def main(argv: list[str] | None = None) -> int:
         from vade_replay.review import write_recording_review
 
         divergence = summary.first_divergence["frame"] if summary.first_divergence else None
+        spawn = args.spawn
+        if spawn and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+            print(f"warning: no display here, so no viewer is opened; open {args.rerun} with "
+                  "`rerun` where there is one", file=sys.stderr)
+            spawn = False
         counts = write_recording_review(recording, args.rerun, overrides=overrides,
-                                        divergence_frame=divergence, spawn=args.spawn)
+                                        divergence_frame=divergence, spawn=spawn)
         if not args.json:
             print(f"review: {args.rerun} ({counts['frames']} frames; open with "
                   f"`rerun {args.rerun}`)")

@@ -150,6 +150,41 @@ def test_a_run_that_fails_part_way_keeps_what_it_recorded(tmp_path):
     assert str(partial) in result.stderr
     replayed = run_cli("vade-replay", str(partial), "--json")
     assert replayed.returncode == 0, replayed.stderr
-    # Every frame before the bad row's; the 2.0 s frame was still open (a frame ends when a
-    # row with a later time arrives) when the bad row stopped the run.
-    assert json.loads(replayed.stdout)["frames"] == 6
+    # Every frame before the bad row, including the 2.0 s frame still open when it came.
+    assert json.loads(replayed.stdout)["frames"] == 7
+
+
+def test_output_paths_that_cannot_be_written(tmp_path):
+    (tmp_path / "afile").write_text("x")
+    session = str(RECORDINGS / "drop_on_table.json")
+    golden = str(RECORDINGS / "drop_on_table.mcap")
+    _assert_clean_error(run_cli("vade-record", session, "-o", str(tmp_path / "afile" / "x.mcap")),
+                        "afile is a file")
+    _assert_clean_error(run_cli("vade-record", session, "-o", str(tmp_path)), "is a folder")
+    assert not list(tmp_path.glob("*.partial"))
+    _assert_clean_error(run_cli("vade-replay", golden, "-o", str(tmp_path / "afile" / "y.mcap")),
+                        "afile is a file")
+    _assert_clean_error(run_cli("vade-replay", golden, "--rerun", str(tmp_path / "afile" / "r.rrd")),
+                        "afile is a file")
+    _assert_clean_error(run_cli("vade-replay", str(tmp_path)), "is a folder")
+    _assert_clean_error(run_cli("vade-replay", golden, "--spawn"), "--rerun")
+
+
+def test_goldens_command_rejects_unknown_names_and_folders(tmp_path):
+    _assert_clean_error(run_cli("vade-goldens", "--dir", str(tmp_path / "none")), "--dir")
+    _assert_clean_error(run_cli("vade-goldens", "--dir", str(tmp_path)), "no session files")
+    _assert_clean_error(run_cli("vade-goldens", "--check", "nosuch"), "nosuch")
+
+
+def test_session_errors_name_the_field_that_is_wrong(tmp_path):
+    doc = _doc()
+    doc["parts"][0]["shape"]["size"][0] = -0.04
+    _assert_clean_error(run_cli("vade-record", str(_write(tmp_path, doc))), "parts[0].shape.size")
+    doc = _doc()
+    doc["parts"][0]["shape"] = {"type": "mesh", "file": "nosuch.stl"}
+    _assert_clean_error(run_cli("vade-record", str(_write(tmp_path, doc))),
+                        "parts[0].shape.file", "nosuch.stl")
+    doc = _doc()
+    doc["physics"] = {"gravty_scale_free": 0.3}
+    _assert_clean_error(run_cli("vade-record", str(_write(tmp_path, doc))),
+                        "physics.gravty_scale_free", "gravity_scale_free")

@@ -100,13 +100,48 @@ def _parse_time_ns(text: str, unit: str) -> int:
     return round(float(text) * TIME_TO_NS[unit])
 
 
+def _csv_row(row: list[str], col: dict[str, int], line_no: int, *, file: str, factor: float,
+             time_unit: str, quaternion_order: str) -> tuple[int, str, DeviceSample]:
+    """One row of a tracker log: time, device and its sample; a bad row names its line."""
+    where = f"line {line_no}"
+    try:
+        t_ns = _parse_time_ns(row[col["time"]].strip(), time_unit)
+        device = row[col["device"]].strip()
+        position = tuple(float(row[col[c]]) * factor for c in ("x", "y", "z"))
+        q = [float(row[col[c]]) for c in ("q0", "q1", "q2", "q3")]
+        grip_text = row[col["grip"]].strip().lower()
+    except (ValueError, IndexError) as exc:
+        raise SessionError(f"unreadable row: {exc}", file=file, field=where) from None
+    if device not in DEVICES:
+        raise SessionError(f"unknown device {device!r} (use {', '.join(DEVICES)})",
+                           file=file, field=f"{where}: device")
+    if not all(math.isfinite(v) for v in (*position, *q)):
+        raise SessionError("non-finite number", file=file, field=where)
+    xyzw = (q[0], q[1], q[2], q[3]) if quaternion_order == "xyzw" else (q[1], q[2], q[3], q[0])
+    try:
+        rotation = sp.quat_normalize(xyzw)
+    except ValueError:
+        raise SessionError("zero quaternion", file=file, field=f"{where}: q0..q3") from None
+    if grip_text in ("", "none"):
+        grip = None
+    elif grip_text in ("1", "true", "yes"):
+        grip = True
+    elif grip_text in ("0", "false", "no"):
+        grip = False
+    else:
+        raise SessionError(f"grip must be 0/1/true/false, got {grip_text!r}", file=file,
+                           field=f"{where}: grip")
+    return t_ns, device, DeviceSample(position, rotation, grip if device != "head" else None)
+
+
 def from_csv(data: bytes, *, file: str, units: str, time_unit: str,
              quaternion_order: str) -> Iterator[TrackerFrame]:
     """Frames from a tracker log: one row per device sample, rows in time order.
 
     Rows with the same time form one frame; a device seen twice at the same time starts a
     new frame with that time (a duplicated sample). Devices missing from a frame keep their
-    last sample.
+    last sample. At a bad row the frame in the making is yielded first, then the error is
+    raised, so a recording keeps every good sample before it.
     """
     factor = UNIT_TO_M[units]
     text = data.decode("utf-8-sig", errors="replace")
@@ -127,43 +162,26 @@ def from_csv(data: bytes, *, file: str, units: str, time_unit: str,
     for line_no, row in enumerate(reader, start=2):
         if not row or all(not cell.strip() for cell in row):
             continue
-        where = f"line {line_no}"
         try:
-            t_ns = _parse_time_ns(row[col["time"]].strip(), time_unit)
-            device = row[col["device"]].strip()
-            position = tuple(float(row[col[c]]) * factor for c in ("x", "y", "z"))
-            q = [float(row[col[c]]) for c in ("q0", "q1", "q2", "q3")]
-            grip_text = row[col["grip"]].strip().lower()
-        except (ValueError, IndexError) as exc:
-            raise SessionError(f"unreadable row: {exc}", file=file, field=where) from None
-        if device not in DEVICES:
-            raise SessionError(f"unknown device {device!r} (use {', '.join(DEVICES)})",
-                               file=file, field=f"{where}: device")
-        if not all(math.isfinite(v) for v in (*position, *q)):
-            raise SessionError("non-finite number", file=file, field=where)
-        xyzw = (q[0], q[1], q[2], q[3]) if quaternion_order == "xyzw" else (q[1], q[2], q[3], q[0])
-        try:
-            rotation = sp.quat_normalize(xyzw)
-        except ValueError:
-            raise SessionError("zero quaternion", file=file, field=f"{where}: q0..q3") from None
-        if grip_text in ("", "none"):
-            grip = None
-        elif grip_text in ("1", "true", "yes"):
-            grip = True
-        elif grip_text in ("0", "false", "no"):
-            grip = False
-        else:
-            raise SessionError(f"grip must be 0/1/true/false, got {grip_text!r}", file=file,
-                               field=f"{where}: grip")
-        if current_t is not None and t_ns < current_t:
-            raise SessionError("time goes backwards", file=file, field=f"{where}: time")
+            t_ns, device, sample = _csv_row(row, col, line_no, file=file, factor=factor,
+                                            time_unit=time_unit,
+                                            quaternion_order=quaternion_order)
+            if current_t is not None and t_ns < current_t:
+                raise SessionError("time goes backwards", file=file,
+                                   field=f"line {line_no}: time")
+        except SessionError:
+            # The frame in the making holds every good sample before the bad row: keep it.
+            if current_t is not None:
+                last.update(current)
+                yield TrackerFrame(frame, current_t, tuple(sorted(last.items())))
+            raise
         if current_t is not None and (t_ns != current_t or device in current):
             last.update(current)
-            yield TrackerFrame(frame, current_t, tuple(sorted({**last}.items())))
+            yield TrackerFrame(frame, current_t, tuple(sorted(last.items())))
             frame += 1
             current = {}
         current_t = t_ns
-        current[device] = DeviceSample(position, rotation, grip if device != "head" else None)
+        current[device] = sample
     if current_t is None:
         raise SessionError("tracker log has no samples", file=file)
     last.update(current)

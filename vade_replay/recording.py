@@ -49,6 +49,26 @@ def package_versions() -> dict[str, str]:
     return out
 
 
+def ensure_writable(path: str | Path) -> Path:
+    """Check that an output file can be written (creating its folder) before any work."""
+    path = Path(path)
+    if path.is_dir():
+        raise RecordingError("is a folder; give a file name to write", file=str(path))
+    for folder in path.parents:
+        if folder.exists():
+            if not folder.is_dir():
+                raise RecordingError(f"{folder} is a file, not a folder", file=str(path))
+            break
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise RecordingError(f"cannot create its folder: {exc.strerror}", file=str(path)) \
+            from None
+    if not os.access(path.parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise RecordingError("cannot write here: permission denied", file=str(path))
+    return path
+
+
 class RecordingWriter:
     """Writes one session: attachments and metadata first, then frame after frame."""
 
@@ -131,6 +151,8 @@ class Recording:
 
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
+        if self.path.is_dir():
+            raise RecordingError("is a folder, not a recording", file=str(self.path))
         if not self.path.is_file():
             raise RecordingError("no such file", file=str(self.path))
         self.profile = None
@@ -149,8 +171,9 @@ class Recording:
                     elif isinstance(record, (Schema, Channel, Message)):
                         break  # the writer puts attachments and metadata before any data
         except _READ_ERRORS as exc:
-            raise RecordingError(f"not a readable MCAP file: {exc or type(exc).__name__}",
-                                 file=str(self.path)) from None
+            detail = str(exc) or f"{type(exc).__name__}: too short or not MCAP"
+            raise RecordingError(f"not a readable MCAP file ({detail})", file=str(self.path)) \
+                from None
         if self.profile != PROFILE or SESSION_ATTACHMENT not in attachments:
             raise RecordingError("not a vade_replay recording (no session attachment)",
                                  file=str(self.path))

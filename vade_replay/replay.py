@@ -8,19 +8,20 @@ walks the two messages to name the frame, channel, part, field and both values.
 
 from __future__ import annotations
 
+import copy
 import json
 import os
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Iterable, Iterator
 
 from . import codec
 from .collision import CollisionWorld
-from .errors import ConfigError, VadeError
+from .errors import ConfigError, SessionError, VadeError
 from .frames import FrameRecord, TrackerFrame
-from .recording import RecordedFrame, Recording, RecordingWriter
-from .scene import LENGTH_FIELDS, Physics, Scene, with_physics
-from .session import Session
+from .recording import RecordedFrame, Recording, RecordingWriter, ensure_writable
+from .scene import Scene
+from .session import Session, parse
 from .step import frame_record, initial_state, step
 
 
@@ -144,61 +145,38 @@ def _divergence(inputs: TrackerFrame, recorded: list[tuple[str, bytes]],
     return None
 
 
-def apply_overrides(scene: Scene, overrides: dict[str, str]) -> tuple[Scene, dict]:
-    """Scene with ``physics.NAME=VALUE`` overrides applied; values are JSON (numbers, strings).
+def apply_overrides(session: Session, overrides: dict[str, str]) -> tuple[Session, dict]:
+    """The session as if its ``physics`` block said ``NAME: VALUE`` for each override.
 
-    Lengths are in metres here, whatever the session's units.
+    Values are JSON (numbers, strings, lists) in the session's own units, exactly as they
+    would be written in the session file; the changed document is validated against the
+    session schema and the scene is built from it, so defaults that depend on physics (the
+    friction of constraints that do not set their own, ``model: paper``'s integrators)
+    follow the change.
     """
-    names = {f.name: f for f in fields(Physics)}
-    changes: dict[str, object] = {}
-    for key, text in overrides.items():
-        if not key.startswith("physics.") or key[8:] not in names:
-            raise ConfigError(f"unknown parameter {key!r}; settable: "
-                              + ", ".join(f"physics.{n}" for n in sorted(names)), field=key)
-        name = key[8:]
+    if not overrides:
+        return session, {}
+    doc = copy.deepcopy(session.doc)
+    physics = doc.setdefault("physics", {})
+    applied: dict[str, object] = {}
+    for key, text in sorted(overrides.items()):
+        if not key.startswith("physics.") or not key[8:]:
+            raise ConfigError("only physics parameters can be changed: physics.NAME=VALUE",
+                              field=key)
         try:
             value = json.loads(text)
         except json.JSONDecodeError:
             value = text
-        current = getattr(scene.physics, name)
-        if isinstance(current, tuple):
-            if not (isinstance(value, list) and len(value) == len(current)):
-                raise ConfigError(f"needs a list of {len(current)} numbers", field=key, value=text)
-            value = tuple(float(v) for v in value)
-        elif isinstance(current, bool) or isinstance(current, str):
-            if not isinstance(value, type(current)):
-                raise ConfigError(f"needs a {type(current).__name__}", field=key, value=text)
-        elif isinstance(current, (int, float)):
-            if not isinstance(value, (int, float)) or isinstance(value, bool):
-                raise ConfigError("needs a number", field=key, value=text)
-            value = type(current)(value)
-        changes[name] = value
-    if not changes:
-        return scene, {}
+        physics[key[8:]] = value
+        applied[key] = value
     try:
-        changed = with_physics(scene, **changes)
-        _check_physics(changed.physics)
-    except (TypeError, ValueError) as exc:
+        changed = parse(json.dumps(doc, indent=2).encode(), session.files, source="--set")
+        changed.build_scene()
+    except SessionError as exc:
+        raise ConfigError(exc.message, field=exc.field or "--set") from None
+    except ValueError as exc:
         raise ConfigError(str(exc), field="--set") from None
-    return changed, {f"physics.{k}": v for k, v in changes.items()}
-
-
-def _check_physics(physics: Physics) -> None:
-    if physics.free_rotation not in ("momentum", "constant_omega"):
-        raise ConfigError("physics.free_rotation must be momentum or constant_omega",
-                          field="physics.free_rotation")
-    if physics.release_velocity not in ("window_fit", "two_frame"):
-        raise ConfigError("physics.release_velocity must be window_fit or two_frame",
-                          field="physics.release_velocity")
-    if physics.free_rotation_order not in (2, 4, 6):
-        raise ConfigError("physics.free_rotation_order must be 2, 4 or 6",
-                          field="physics.free_rotation_order")
-    for name in (*LENGTH_FIELDS, "free_rotation_max_step_s", "one_hand_max_mass_kg"):
-        if not getattr(physics, name) > 0:
-            raise ConfigError(f"physics.{name} must be positive", field=f"physics.{name}")
-    if physics.release_window < 2:
-        raise ConfigError("physics.release_window must be at least 2",
-                          field="physics.release_window")
+    return changed, applied
 
 
 def record(session: Session, out: str | Path, *,
@@ -209,12 +187,11 @@ def record(session: Session, out: str | Path, *,
     way, the partial file is closed properly (readable, indexed) and kept, and the error is
     raised with the frame it happened at.
     """
-    out = Path(out)
+    out = ensure_writable(out)
+    partial = ensure_writable(out.with_name(out.name + ".partial"))
     scene = session.build_scene()
-    out.parent.mkdir(parents=True, exist_ok=True)
     collision = CollisionWorld(scene)
     summary = RunSummary(session.name, parts=[p.name for p in scene.parts])
-    partial = out.with_name(out.name + ".partial")
     first_time = None
     frame = None
     writer = RecordingWriter(partial, session, scene)
@@ -229,8 +206,8 @@ def record(session: Session, out: str | Path, *,
                 on_frame(record_)
     except VadeError as exc:
         writer.close()
-        if exc.frame is None:
-            exc.frame = frame
+        if exc.frame is None and exc.field is None and frame is not None:
+            exc.frame = frame + 1  # the frame being made when it failed
         exc.message += f" (the {writer.frames} frames before it are kept in {partial})"
         raise type(exc)(exc.message, file=exc.file, field=exc.field, frame=exc.frame) from None
     except BaseException:
@@ -279,17 +256,17 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     then reports where the changed run departs from the recording. With ``out`` the
     regenerated recording is written there; the original file is never modified.
     """
-    scene = recording.session.build_scene()
-    scene, applied = apply_overrides(scene, overrides or {})
+    session, applied = apply_overrides(recording.session, overrides or {})
+    scene = session.build_scene()
     collision = CollisionWorld(scene)
-    summary = RunSummary(recording.session.name, parts=[p.name for p in scene.parts],
-                         overrides=applied)
+    summary = RunSummary(session.name, parts=[p.name for p in scene.parts], overrides=applied)
     writer = None
     if out is not None:
         if Path(out).resolve() == recording.path.resolve():
             raise ConfigError("refusing to overwrite the recording being replayed", file=str(out))
-        Path(out).parent.mkdir(parents=True, exist_ok=True)
-        writer = RecordingWriter(Path(out), recording.session, scene,
+        ensure_writable(out)
+        # A what-if's recording embeds the changed session, so that it replays itself.
+        writer = RecordingWriter(Path(out), session, scene,
                                  extra_metadata={"replayed_from": str(recording.path)})
     first_time = None
     try:

@@ -46,7 +46,8 @@ def write_recording_review(recording: Recording, out: str | Path, *,
     the recording only if it diverged, from ``divergence_frame`` on.
     """
     base_scene = recording.session.build_scene()
-    scene, applied = apply_overrides(base_scene, overrides or {})
+    session, applied = apply_overrides(recording.session, overrides or {})
+    scene = session.build_scene() if applied else base_scene
     compare = None
     label = "replayed"
     if applied:

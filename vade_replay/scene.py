@@ -419,8 +419,3 @@ def build_scene(session: dict, files: dict[str, bytes], *, file: str = "<session
     return Scene(name=session["name"], units=units, physics=physics, parts=parts, base=base,
                  hand_from_base=hand_from_base, environment=environment,
                  part_index={b.name: i for i, b in enumerate(parts)})
-
-
-def with_physics(scene: Scene, **changes) -> Scene:
-    """The same scene with some physics parameters changed (what-if replays)."""
-    return replace(scene, physics=replace(scene.physics, **changes))

@@ -51,23 +51,37 @@ def validate(doc: object, *, file: str) -> None:
     errors = sorted(_validator().iter_errors(doc), key=lambda e: (list(e.absolute_path), e.message))
     if errors:
         error = jsonschema.exceptions.best_match(errors)
-        raise SessionError(error.message, file=file, field=_path(error))
+        field = _path(error)
+        if error.validator == "additionalProperties" and isinstance(error.instance, dict):
+            # Name the unexpected key itself, and what would have been allowed.
+            known = sorted(error.schema.get("properties", {}))
+            extra = sorted(k for k in error.instance if k not in known)
+            if extra:
+                field = f"{field}.{extra[0]}" if field != "(top level)" else extra[0]
+                raise SessionError(f"unknown field {extra[0]!r}; allowed: {', '.join(known)}",
+                                   file=file, field=field)
+        raise SessionError(error.message, file=file, field=field)
 
 
-def referenced_files(doc: dict) -> list[str]:
-    """Every file a session names, relative to the session file, sorted."""
-    names = set()
-    bodies = list(doc.get("parts", [])) + list(doc.get("environment", []))
-    if "base" in doc:
-        bodies.append(doc["base"])
-    for body in bodies:
-        if "file" in body.get("shape", {}):
-            names.add(body["shape"]["file"])
-        if "file" in body.get("mass_properties", {}):
-            names.add(body["mass_properties"]["file"])
-    if "csv" in doc.get("tracker", {}):
-        names.add(doc["tracker"]["csv"])
-    return sorted(names)
+def referenced_files(doc: dict) -> dict[str, str]:
+    """Every file a session names (relative to the session file) -> the field that names it."""
+    found: dict[str, str] = {}
+
+    def walk(value, where: str) -> None:
+        if isinstance(value, dict):
+            for key in sorted(value):
+                if key in ("file", "csv") and isinstance(value[key], str):
+                    found.setdefault(value[key], f"{where}.{key}")
+                else:
+                    walk(value[key], f"{where}.{key}")
+        elif isinstance(value, list):
+            for index, item in enumerate(value):
+                walk(item, f"{where}[{index}]")
+
+    for key in ("parts", "base", "environment", "tracker"):
+        if key in doc:
+            walk(doc[key], key)
+    return dict(sorted(found.items()))
 
 
 @dataclass(frozen=True)
@@ -106,15 +120,17 @@ def parse(raw: bytes, files: dict[str, bytes], *, source: str) -> Session:
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise SessionError(f"not valid JSON: {exc}", file=source) from None
     validate(doc, file=source)
-    missing = [name for name in referenced_files(doc) if name not in files]
-    if missing:
-        raise SessionError(f"named files are missing: {', '.join(missing)}", file=source)
+    for name, where in referenced_files(doc).items():
+        if name not in files:
+            raise SessionError(f"file {name!r} is missing", file=source, field=where)
     return Session(doc, files, source, raw)
 
 
 def load(path: str | Path) -> Session:
     """Read and validate a session file and every file it names, relative to it."""
     path = Path(path)
+    if path.is_dir():
+        raise SessionError("is a folder, not a session file", file=str(path))
     try:
         raw = path.read_bytes()
     except OSError as exc:
@@ -125,11 +141,11 @@ def load(path: str | Path) -> Session:
         raise SessionError(f"not valid JSON: {exc}", file=str(path)) from None
     validate(doc, file=str(path))
     files = {}
-    for name in referenced_files(doc):
+    for name, where in referenced_files(doc).items():
         target = path.parent / name
         try:
             files[name] = target.read_bytes()
         except OSError as exc:
-            raise SessionError(f"cannot read {name!r}: {exc.strerror}", file=str(path),
-                               field=name) from None
+            raise SessionError(f"cannot read {target}: {exc.strerror}", file=str(path),
+                               field=where) from None
     return Session(doc, files, str(path), raw)
