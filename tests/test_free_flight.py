@@ -70,7 +70,7 @@ MOMENTS = (0.3 * (0.05**2 + 0.02**2) / 12, 0.3 * (0.10**2 + 0.02**2) / 12,
 W0 = (0.1, 5.0, 0.1)
 
 
-def _tumble(seconds: float, *, order=4, max_step=1 / 240, rate=60):
+def _tumble(seconds: float, *, order=6, max_step=1 / 60, rate=60):
     q = sp.IDENTITY_QUAT
     m = tuple(i * w for i, w in zip(MOMENTS, W0))
     out = [(0.0, q, m)]
@@ -136,20 +136,25 @@ def test_orientation_matches_high_accuracy_reference():
         ref = sol.sol(t)[3:]
         ref = tuple(ref / np.linalg.norm(ref))
         worst = max(worst, sp.quat_angle_between(q, ref))
-    # Default free-flight rotation: 4th-order splitting, 1/240 s sub-steps.
-    assert worst < 2e-4
-    # Sixth order with finer steps is far more accurate: the error is the integrator's.
-    fine = _tumble(10.0, order=6, max_step=1 / 960)
+    # The defaults (6th-order splitting, one step per 60 Hz frame): within 1e-7 rad.
+    assert worst < 1e-7
+    # Finer steps are more accurate still: the error is the integrator's, not the reference's.
+    fine = _tumble(10.0, max_step=1 / 240)
     worst_fine = max(sp.quat_angle_between(q, tuple(sol.sol(t)[3:] / np.linalg.norm(sol.sol(t)[3:])))
                      for t, q, _ in fine[::30])
-    assert worst_fine < worst / 100
+    assert worst_fine < worst / 20
+    # Second order at the same step is far worse: the order is what buys the accuracy.
+    coarse = _tumble(10.0, order=2)
+    worst_coarse = max(sp.quat_angle_between(q, tuple(sol.sol(t)[3:] / np.linalg.norm(sol.sol(t)[3:])))
+                       for t, q, _ in coarse[::30])
+    assert worst_coarse > 1e4 * worst
 
 
 def test_splitting_order_is_as_claimed():
     sol = _reference(2.0)
     ref = sol.sol(2.0)[3:]
     ref = tuple(ref / np.linalg.norm(ref))
-    for order in (2, 4):
+    for order in (2, 4, 6):
         errors = []
         for step in (1 / 120, 1 / 240):
             q = _tumble(2.0, order=order, max_step=step)[-1][1]
