@@ -188,3 +188,12 @@ def test_session_errors_name_the_field_that_is_wrong(tmp_path):
     doc["physics"] = {"gravty_scale_free": 0.3}
     _assert_clean_error(run_cli("vade-record", str(_write(tmp_path, doc))),
                         "physics.gravty_scale_free", "gravity_scale_free")
+
+
+def test_friction_what_if_reaches_constraints_that_set_their_own():
+    golden = RECORDINGS / "plane_block_wall.mcap"
+    doc = json.loads((RECORDINGS / "plane_block_wall.json").read_text())
+    assert doc["parts"][0]["assembly"]["constraints"][0]["friction"]["dynamic"] != 0.1
+    result = run_cli("vade-replay", str(golden), "--set", "physics.friction_dynamic=0.1", "--json")
+    summary = json.loads(result.stdout)
+    assert result.returncode == 0 and summary["match"] is False

@@ -145,14 +145,18 @@ def _divergence(inputs: TrackerFrame, recorded: list[tuple[str, bytes]],
     return None
 
 
+_FRICTION_KEYS = {"friction_static": "static", "friction_dynamic": "dynamic",
+                  "friction_rotational": "rotational"}
+
+
 def apply_overrides(session: Session, overrides: dict[str, str]) -> tuple[Session, dict]:
     """The session as if its ``physics`` block said ``NAME: VALUE`` for each override.
 
     Values are JSON (numbers, strings, lists) in the session's own units, exactly as they
     would be written in the session file; the changed document is validated against the
-    session schema and the scene is built from it, so defaults that depend on physics (the
-    friction of constraints that do not set their own, ``model: paper``'s integrators)
-    follow the change.
+    session schema and the scene is built from it, so what depends on physics follows the
+    change (``model: paper`` brings the paper's integrators). A friction override applies to
+    every constraint, also those that set their own friction in the session.
     """
     if not overrides:
         return session, {}
@@ -169,6 +173,11 @@ def apply_overrides(session: Session, overrides: dict[str, str]) -> tuple[Sessio
             value = text
         physics[key[8:]] = value
         applied[key] = value
+        if key[8:] in _FRICTION_KEYS:
+            # A what-if of friction means every contact: constraints lose their own value.
+            for part in doc.get("parts", []):
+                for constraint in part.get("assembly", {}).get("constraints", []):
+                    constraint.get("friction", {}).pop(_FRICTION_KEYS[key[8:]], None)
     try:
         changed = parse(json.dumps(doc, indent=2).encode(), session.files, source="--set")
         changed.build_scene()
