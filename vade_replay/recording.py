@@ -16,7 +16,6 @@ import struct
 from dataclasses import asdict, dataclass
 from importlib import metadata as importlib_metadata
 from pathlib import Path
-import struct
 from typing import Iterator
 
 from mcap.exceptions import McapError
