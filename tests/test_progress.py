@@ -1,0 +1,38 @@
+"""The progress bar: drawn on a terminal, silent otherwise."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+
+from conftest import RECORDINGS, run_cli
+from vade_replay.cli._common import Progress
+
+
+class _Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def test_bar_on_a_terminal():
+    err = _Terminal()
+    with contextlib.redirect_stderr(err):
+        bar = Progress("replaying", 90)
+        for _ in range(90):
+            bar.update()
+        bar.close()
+    text = err.getvalue()
+    assert "\rreplaying [" in text and "90/90 frames" in text and text.endswith("\n")
+
+
+def test_quiet_when_not_a_terminal():
+    result = run_cli("vade-replay", str(RECORDINGS / "throw_and_catch.mcap"))
+    assert result.returncode == 0
+    assert result.stderr == ""
+    assert "\r" not in result.stdout
+
+
+def test_replay_knows_its_length_for_the_bar():
+    from vade_replay.recording import Recording
+
+    assert Recording(RECORDINGS / "throw_and_catch.mcap").frame_count == 181
