@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import Callable
 
@@ -40,3 +41,16 @@ def copy_recording(src: Path, dst: Path, edit: Callable[[str, int, bytes], bytes
                 writer.add_message(channel_ids[channel.id], message.log_time, data,
                                    message.publish_time, message.sequence)
         writer.finish()
+
+
+def nudge_pose(src: Path, dst: Path, *, frame: int, axis: int, delta: float) -> None:
+    """Copy src to dst with the first part's recorded position at ``frame`` moved by ``delta``."""
+
+    def edit(topic: str, index: int, data: bytes) -> bytes:
+        if topic == "/parts" and index == frame:
+            msg = json.loads(data)
+            msg["parts"][0]["position"][axis] += delta
+            return json.dumps(msg, sort_keys=True, separators=(",", ":")).encode()
+        return data
+
+    copy_recording(src, dst, edit)

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from conftest import RECORDINGS, run_cli
-from mcap_edit import copy_recording
+from mcap_edit import copy_recording, nudge_pose
 from vade_replay.recording import Recording
 from vade_replay.replay import replay
 
@@ -33,18 +33,10 @@ def test_golden_replays_exactly(golden: Path):
 
 
 def test_changed_pose_is_named_with_its_frame(tmp_path: Path):
-    src = RECORDINGS / "drop_on_table.mcap"
     target_frame = 100
-
-    def edit(topic, index, data):
-        if topic == "/parts" and index == target_frame:
-            msg = json.loads(data)
-            msg["parts"][0]["position"][2] += 1e-12
-            return json.dumps(msg, sort_keys=True, separators=(",", ":")).encode()
-        return data
-
     tampered = tmp_path / "tampered.mcap"
-    copy_recording(src, tampered, edit)
+    nudge_pose(RECORDINGS / "drop_on_table.mcap", tampered, frame=target_frame, axis=2,
+               delta=1e-12)
     result = run_cli("vade-replay", str(tampered))
     assert result.returncode == 1, result.stderr
     assert f"frame {target_frame}" in result.stdout

@@ -2,14 +2,12 @@
 
 from __future__ import annotations
 
-import json
-
 import pytest
 
 pytest.importorskip("rerun")
 
 from conftest import RECORDINGS, run_cli  # noqa: E402
-from mcap_edit import copy_recording  # noqa: E402
+from mcap_edit import nudge_pose  # noqa: E402
 from test_view import read_rrd, rows  # noqa: E402
 from vade_replay.recording import Recording  # noqa: E402
 from vade_replay.replay import recorded_record  # noqa: E402
@@ -40,16 +38,8 @@ def test_review_of_a_matching_replay(tmp_path):
 
 def test_review_marks_the_first_divergence(tmp_path):
     target = 90
-
-    def edit(topic, index, data):
-        if topic == "/parts" and index == target:
-            msg = json.loads(data)
-            msg["parts"][0]["position"][0] += 1e-9
-            return json.dumps(msg, sort_keys=True, separators=(",", ":")).encode()
-        return data
-
     tampered = tmp_path / "t.mcap"
-    copy_recording(RECORDINGS / "drop_on_table.mcap", tampered, edit)
+    nudge_pose(RECORDINGS / "drop_on_table.mcap", tampered, frame=target, axis=0, delta=1e-9)
     rrd = tmp_path / "diverged.rrd"
     result = run_cli("vade-replay", str(tampered), "--rerun", str(rrd))
     assert result.returncode == 1
