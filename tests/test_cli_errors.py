@@ -197,3 +197,28 @@ def test_friction_what_if_reaches_constraints_that_set_their_own():
     result = run_cli("vade-replay", str(golden), "--set", "physics.friction_dynamic=0.1", "--json")
     summary = json.loads(result.stdout)
     assert result.returncode == 0 and summary["match"] is False
+
+
+@pytest.mark.parametrize("mutate, needle", [
+    (lambda d: d["parts"][0]["pose"].update(position=[0.0, 0.0, float("nan")]), "NaN"),
+    (lambda d: d["tracker"]["devices"]["right_hand"][1].update(position=[1e200, 0, 0]),
+     "right_hand[1].position"),
+    (lambda d: d["tracker"].update(duration_s=1e12), "tracker.duration_s"),
+    (lambda d: d.setdefault("physics", {}).update(free_rotation_max_step_s=1e-300),
+     "physics.free_rotation_max_step_s"),
+    (lambda d: d["parts"][0].pop("density") and d["parts"][0].update(mass_properties={
+        "mass": 1.0, "center_of_mass": [0, 0, 0],
+        "inertia": [[1, 2, 0], [2, 1, 0], [0, 0, 1]]}), "principal moments"),
+])
+def test_absurd_numbers_are_refused_not_simulated(tmp_path, mutate, needle):
+    doc = _doc()
+    mutate(doc)
+    path = tmp_path / "s.json"
+    path.write_text(json.dumps(doc))  # json writes NaN as the non-standard NaN token
+    _assert_clean_error(run_cli("vade-record", str(path)), needle)
+    assert not list(tmp_path.glob("*.mcap*"))
+
+
+def test_set_refuses_nan():
+    _assert_clean_error(run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"), "--set",
+                                "physics.contact_tolerance=NaN"), "physics.contact_tolerance")

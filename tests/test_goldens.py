@@ -95,3 +95,14 @@ def test_recording_a_session_again_gives_its_golden(session: Path, tmp_path: Pat
     golden = [(f.inputs, f.derived) for f in Recording(session.with_suffix(".mcap")).frames()]
     assert again == golden
     assert run_cli("vade-replay", str(out)).returncode == 0
+
+
+def test_signed_zero_is_a_difference(tmp_path: Path):
+    """Bit for bit means -0.0 differs from 0.0, though they compare equal as numbers."""
+    from vade_replay.replay import _divergence
+
+    inputs = next(Recording(RECORDINGS / "drop_on_table.mcap").frames()).inputs
+    found = _divergence(inputs, [("/parts", b'{"x":-0.0}')], [("/parts", b'{"x":0.0}')])
+    assert found is not None and found.field == "x"
+    found = _divergence(inputs, [("/parts", b'{"x": 1.0}')], [("/parts", b'{"x":1.0}')])
+    assert found is not None and found.field == "(encoding)"

@@ -13,7 +13,7 @@ import math
 
 from . import events as ev
 from .errors import RecordingError
-from .frames import DeviceSample, FrameRecord, PartSnapshot, TrackerFrame
+from .frames import MAX_ABS_POSITION_M, DeviceSample, FrameRecord, PartSnapshot, TrackerFrame
 
 TRACKER_TOPIC = "/tracker"
 PARTS_TOPIC = "/parts"
@@ -59,8 +59,9 @@ def encode_tracker(frame: TrackerFrame) -> dict:
 def _vec(value, n: int, *, topic: str, field: str, frame: int | None) -> tuple:
     if not (isinstance(value, list) and len(value) == n and
             all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-                for v in value)):
-        raise RecordingError(f"{field} must be {n} finite numbers, got {value!r}",
+                and abs(v) <= MAX_ABS_POSITION_M for v in value)):
+        raise RecordingError(f"{field} must be {n} finite numbers of at most "
+                             f"{MAX_ABS_POSITION_M:g} in size, got {value!r}",
                              field=f"{topic} {field}", frame=frame)
     return tuple(float(v) for v in value)
 

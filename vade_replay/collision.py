@@ -97,10 +97,14 @@ class CollisionWorld:
             self._fixed.append(_Fixed(body.name, obj, tuple(world.min(axis=0)),
                                       tuple(world.max(axis=0))))
         self._mates: dict[tuple[str, int], _MateGeometry] = {}
+        self._base_whole = None
+        self.base_radius = 0.0  # farthest base vertex from the base frame's origin
         if scene.base is not None:
             base = scene.base
             identity = fcl.Transform()
             whole = fcl.CollisionObject(_bvh(base), identity)
+            self._base_whole = whole
+            self.base_radius = float(np.max(np.linalg.norm(base.vertices, axis=1)))
             for body in scene.parts:
                 if body.assembly is None:
                     continue
@@ -165,6 +169,14 @@ class CollisionWorld:
         self.stats["fcl_distance_queries"] += 1
         cylinder = fcl.CollisionObject(geometry.sweep, _transform(sp.Pose(center, axis_rotation)))
         return _distance(cylinder, geometry.base_rest)
+
+    def distance_to_base(self, part: str, base_from_part: sp.Pose) -> float:
+        """Distance from the part, posed in the base frame, to the whole base part."""
+        if self._base_whole is None:
+            return float("inf")
+        self.stats["fcl_distance_queries"] += 1
+        return _distance(fcl.CollisionObject(self._part_models[part], _transform(base_from_part)),
+                         self._base_whole)
 
     def environment_near(self, center: sp.Vec3, radius: float) -> tuple[int, ...]:
         """Indices of environment objects whose world box a sphere can touch."""

@@ -12,6 +12,9 @@ from dataclasses import dataclass, field
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]  # x, y, z, w
 
+# Tracker positions beyond this (metres) are a unit or export mistake, not a room.
+MAX_ABS_POSITION_M = 1e6
+
 
 @dataclass(frozen=True, slots=True)
 class DeviceSample:

@@ -15,7 +15,7 @@ import numpy as np
 
 from . import spatial as sp
 from .errors import SessionError
-from .frames import DeviceSample, TrackerFrame
+from .frames import MAX_ABS_POSITION_M, DeviceSample, TrackerFrame
 from .scene import UNIT_TO_M
 
 DEVICES = ("head", "left_hand", "right_hand")
@@ -39,6 +39,9 @@ def _keyframes(device: str, frames: list[dict], factor: float, file: str) -> lis
         last_t = kf["t"]
         if "position" in kf:
             position = tuple(float(v) * factor for v in kf["position"])
+            if any(abs(v) > MAX_ABS_POSITION_M for v in position):
+                raise SessionError(f"position is more than {MAX_ABS_POSITION_M:g} m from the "
+                                   "origin", file=file, field=f"{where}.position")
         if "xyzw" in kf:
             try:
                 rotation = sp.quat_normalize(tuple(float(v) for v in kf["xyzw"]))
@@ -110,13 +113,19 @@ def _csv_row(row: list[str], col: dict[str, int], line_no: int, *, file: str, fa
         position = tuple(float(row[col[c]]) * factor for c in ("x", "y", "z"))
         q = [float(row[col[c]]) for c in ("q0", "q1", "q2", "q3")]
         grip_text = row[col["grip"]].strip().lower()
-    except (ValueError, IndexError) as exc:
+    except (ValueError, IndexError, OverflowError) as exc:
         raise SessionError(f"unreadable row: {exc}", file=file, field=where) from None
+    if not 0 <= t_ns < 2**63:
+        raise SessionError("time must be at least 0 and below 2^63 ns (292 years)", file=file,
+                           field=f"{where}: time")
     if device not in DEVICES:
         raise SessionError(f"unknown device {device!r} (use {', '.join(DEVICES)})",
                            file=file, field=f"{where}: device")
     if not all(math.isfinite(v) for v in (*position, *q)):
         raise SessionError("non-finite number", file=file, field=where)
+    if any(abs(v) > MAX_ABS_POSITION_M for v in position):
+        raise SessionError(f"position is more than {MAX_ABS_POSITION_M:g} m from the origin",
+                           file=file, field=f"{where}: x, y, z")
     xyzw = (q[0], q[1], q[2], q[3]) if quaternion_order == "xyzw" else (q[1], q[2], q[3], q[0])
     try:
         rotation = sp.quat_normalize(xyzw)

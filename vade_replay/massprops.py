@@ -24,6 +24,8 @@ import math
 import re
 from dataclasses import dataclass
 
+import numpy as np
+
 from .errors import SessionError
 
 LENGTH_TO_M = {"M": 1.0, "METER": 1.0, "MM": 1e-3, "MILLIMETER": 1e-3, "CM": 1e-2,
@@ -55,13 +57,15 @@ def check(props: MassProperties, *, file: str | None, field: str) -> MassPropert
         for j in range(3):
             if abs(inertia[i][j] - inertia[j][i]) > 1e-9 * max(1e-30, abs(inertia[i][i])):
                 raise SessionError("inertia tensor is not symmetric", file=file, field=field)
-    a, b, c = inertia[0][0], inertia[1][1], inertia[2][2]
-    # Triangle inequality of principal moments, checked on the diagonal as a cheap necessary test.
-    if min(a, b, c) <= 0.0 or a > b + c + 1e-12 * (a + b + c) or b > a + c + 1e-12 * (a + b + c) \
-            or c > a + b + 1e-12 * (a + b + c):
+    # The principal moments of a rigid body are positive and each at most the sum of the
+    # other two (equality only for a flat body).
+    a, b, c = (float(m) for m in np.linalg.eigvalsh(np.array(inertia, dtype=np.float64)))
+    slack = 1e-9 * (abs(a) + abs(b) + abs(c))
+    if a <= 0.0 or c > a + b + slack:
         raise SessionError(
-            f"inertia diagonal {a}, {b}, {c} is not that of a rigid body (each moment must be "
-            "positive and at most the sum of the other two)", file=file, field=field)
+            f"inertia tensor has principal moments {a:.6g}, {b:.6g}, {c:.6g}: not a rigid "
+            "body's (each must be positive and at most the sum of the other two)",
+            file=file, field=field)
     return props
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import copy
 import json
+import math
 import os
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -21,7 +22,7 @@ from .errors import ConfigError, SessionError, VadeError
 from .frames import FrameRecord, TrackerFrame
 from .recording import RecordedFrame, Recording, RecordingWriter, ensure_writable
 from .scene import Scene
-from .session import Session, parse
+from .session import Session, parse, strict_json
 from .step import frame_record, initial_state, step
 
 
@@ -103,8 +104,9 @@ def _first_difference(a, b, path: str = ""):
         if len(a) != len(b):
             return f"{path} length".lstrip("."), len(a), len(b)
         return None
-    if a != b or type(a) is not type(b):
-        return path.lstrip("."), a, b
+    if a != b or type(a) is not type(b) or (
+            isinstance(a, float) and math.copysign(1.0, a) != math.copysign(1.0, b)):
+        return path.lstrip("."), a, b  # -0.0 and 0.0 are different bits
     return None
 
 
@@ -126,7 +128,8 @@ def _divergence(inputs: TrackerFrame, recorded: list[tuple[str, bytes]],
         a, b = json.loads(data_a), json.loads(data_b)
         found = _first_difference(a, b)
         if found is None:
-            continue  # same values, different bytes (e.g. written by another encoder)
+            # Same values, other bytes: not what this encoder writes, so not bit for bit.
+            found = ("(encoding)", data_a.decode(errors="replace"), data_b.decode())
         path, value_a, value_b = found
         part = None
         if topic_a == codec.PARTS_TOPIC and path.startswith("parts["):
@@ -168,9 +171,11 @@ def apply_overrides(session: Session, overrides: dict[str, str]) -> tuple[Sessio
             raise ConfigError("only physics parameters can be changed: physics.NAME=VALUE",
                               field=key)
         try:
-            value = json.loads(text)
+            value = strict_json(text)
         except json.JSONDecodeError:
             value = text
+        except ValueError as exc:
+            raise ConfigError(str(exc), field=key) from None
         physics[key[8:]] = value
         applied[key] = value
         if key[8:] in _FRICTION_KEYS:
@@ -215,9 +220,13 @@ def record(session: Session, out: str | Path, *,
                 on_frame(record_)
     except VadeError as exc:
         writer.close()
+        if writer.frames == 0:
+            partial.unlink(missing_ok=True)  # nothing was recorded: leave nothing behind
+            raise
         if exc.frame is None and exc.field is None and frame is not None:
             exc.frame = frame + 1  # the frame being made when it failed
-        exc.message += f" (the {writer.frames} frames before it are kept in {partial})"
+        exc.message += (f" (the {writer.frames} frame{'s' if writer.frames != 1 else ''} before it "
+                        f"are kept in {partial})")
         raise type(exc)(exc.message, file=exc.file, field=exc.field, frame=exc.frame) from None
     except BaseException:
         writer.close()

@@ -44,7 +44,7 @@ class Physics:
     free_rotation_order: int = 6
     free_rotation_max_step_s: float = 1.0 / 60.0
     release_velocity: str = "window_fit"     # paper: two_frame
-    release_window: int = 5
+    release_window: int = 7
     grab_radius: float = 0.05
     one_hand_max_mass_kg: float = 5.0
     contact_tolerance: float = 1e-4

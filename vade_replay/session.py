@@ -21,6 +21,15 @@ from .frames import TrackerFrame
 from .scene import Scene, build_scene
 
 
+def _no_constants(name: str):
+    raise ValueError(f"{name} is not a number a session can hold")
+
+
+def strict_json(text: str | bytes):
+    """JSON as the standard has it: NaN and Infinity are refused, not read as floats."""
+    return json.loads(text, parse_constant=_no_constants)
+
+
 def load_schema(name: str) -> dict:
     """A JSON Schema shipped in ``schemas/`` (installed as ``vade_replay.schemas``)."""
     ref = resources.files("vade_replay.schemas")
@@ -116,8 +125,8 @@ class Session:
 def parse(raw: bytes, files: dict[str, bytes], *, source: str) -> Session:
     """A Session from the session file's bytes and the named files' bytes."""
     try:
-        doc = json.loads(raw.decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        doc = strict_json(raw.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError) as exc:
         raise SessionError(f"not valid JSON: {exc}", file=source) from None
     validate(doc, file=source)
     for name, where in referenced_files(doc).items():
@@ -136,8 +145,8 @@ def load(path: str | Path) -> Session:
     except OSError as exc:
         raise SessionError(f"cannot read session file: {exc.strerror}", file=str(path)) from None
     try:
-        doc = json.loads(raw.decode("utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        doc = strict_json(raw.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError) as exc:
         raise SessionError(f"not valid JSON: {exc}", file=str(path)) from None
     validate(doc, file=str(path))
     files = {}

@@ -23,7 +23,7 @@ from .state import Held, OnBase, PartState, WorldState
 
 RIGHT, LEFT = "right_hand", "left_hand"
 _GRABBABLE = (Mode.STATIC, Mode.INSPACE, Mode.ONBASESLIDE, Mode.ONBASESTATIC, Mode.PLACED)
-_CA_MAX_ITERATIONS = 200
+_CA_MAX_ITERATIONS = 10_000
 
 
 @dataclass
@@ -200,6 +200,14 @@ def _release(f: _Frame, index: int, hand: str) -> None:
             and _release_on_base(f, index, hand):
         return
     cm = part.pose.apply(body.center_of_mass)
+    if f.base_pose is not None and _base_path(f, cm, body.radius_about_cm) is not None:
+        base_from_part = f.base_pose.inverse().compose(part.pose)
+        if f.collision.distance_to_base(part.name, base_from_part) <= physics.contact_tolerance:
+            f.events.append(PartReleased(frame, part.name, Cause.RELEASED_ON_BASE_PART.value,
+                                         hand, v, w))
+            f.change_mode(index, PartState(part.name, Mode.STATIC, part.pose),
+                          Cause.RELEASED_ON_BASE_PART)
+            return
     near = f.collision.environment_near(cm, body.radius_about_cm + physics.contact_tolerance)
     if near:
         d, which = f.collision.distance_to_environment(part.name, part.pose, near)
@@ -253,26 +261,77 @@ def _fly(f: _Frame, index: int) -> None:
     reach = 0.5 * sp.norm(sp.sub(cm_b, cm_a)) + sag + body.radius_about_cm \
         + physics.contact_tolerance
     near = f.collision.environment_near(center, reach)
-    if not near:
+    base = _base_path(f, center, reach)
+    if base is not None and not flight.base_clear:
+        # Just off the base: it is no obstacle until the part has separated from it.
+        base_from_part = f.base_pose.inverse().compose(pose_b)  # type: ignore[union-attr]
+        if f.collision.distance_to_base(part.name, base_from_part) > 2.0 * physics.contact_tolerance:
+            moved = replace(moved, motion=replace(flight, base_clear=True))
+        base = None
+    elif base is None and not flight.base_clear:
+        moved = replace(moved, motion=replace(flight, base_clear=True))
+    if not near and base is None:
         f.parts[index] = moved
         return
-    contact = _time_of_contact(f, body, start, near, t_a, t_b, part.pose, pose_b)
+    contact = _time_of_contact(f, body, start, near, base, t_a, t_b, part.pose, pose_b,
+                               reach + sp.norm(sp.sub(cm_b, cm_a)))
     if contact is None:
         f.parts[index] = moved
         return
     t_c, pose_c, other = contact
+    if other is None:
+        f.events.append(ContactMade(f.inputs.frame, part.name, Cause.HIT_BASE.value,
+                                    f.scene.base.name, t_c))  # type: ignore[union-attr]
+        f.change_mode(index, PartState(part.name, Mode.STATIC, pose_c), Cause.HIT_BASE)
+        return
     f.events.append(ContactMade(f.inputs.frame, part.name, Cause.HIT_ENVIRONMENT.value,
                                 f.collision.environment_name(other), t_c))
     f.change_mode(index, PartState(part.name, Mode.STATIC, pose_c), Cause.HIT_ENVIRONMENT)
 
 
-def _time_of_contact(f: _Frame, body: Body, start: free.Flight, near: tuple[int, ...], t_a: int,
-                     t_b: int, pose_a: sp.Pose, pose_b: sp.Pose):
-    """First time in (t_a, t_b] at which the part comes within the contact tolerance.
+@dataclass(frozen=True)
+class _BasePath:
+    """The base part over a frame: its pose at both ends, interpolated in between."""
+
+    start: sp.Pose
+    end: sp.Pose
+    speed: float      # |velocity of the base origin|
+    omega: float      # |angular velocity|
+
+    def at(self, s: float) -> sp.Pose:
+        p0, p1 = self.start.position, self.end.position
+        return sp.Pose((p0[0] + s * (p1[0] - p0[0]), p0[1] + s * (p1[1] - p0[1]),
+                        p0[2] + s * (p1[2] - p0[2])),
+                       sp.slerp(self.start.rotation, self.end.rotation, s))
+
+
+def _base_path(f: _Frame, center: sp.Vec3, reach: float) -> _BasePath | None:
+    """The base as an obstacle to a flying part this frame, if their spheres can meet."""
+    if f.scene.base is None or f.base_pose is None:
+        return None
+    start = f.base_prev or f.base_pose
+    end = f.base_pose
+    travel = sp.norm(sp.sub(end.position, start.position))
+    middle = sp.scale(sp.add(start.position, end.position), 0.5)
+    if sp.norm(sp.sub(center, middle)) > reach + 0.5 * travel + f.collision.base_radius:
+        return None
+    dt = f.dt_s
+    turn = sp.quat_angle_between(start.rotation, end.rotation)
+    return _BasePath(start, end, travel / dt if dt > 0 else 0.0, turn / dt if dt > 0 else 0.0)
+
+
+def _time_of_contact(f: _Frame, body: Body, start: free.Flight, near: tuple[int, ...],
+                     base: _BasePath | None, t_a: int, t_b: int, pose_a: sp.Pose,
+                     pose_b: sp.Pose, reach: float):
+    """First time in [t_a, t_b] at which the part comes within the contact tolerance of an
+    environment object or of the (moving) base part: ``(time, pose, index)``, with index
+    ``None`` for the base, or ``None`` when there is no contact.
 
     Conservative advancement: at distance d no point of the part can close the gap in less
-    than d / (bound on any point's speed), so stepping by that never passes through an
-    object, however thin or fast.
+    than d / (bound on its speed relative to the obstacle), so stepping by that never passes
+    through an object, however thin or fast. A contact is only ever reported at a distance
+    within the tolerance; if the iteration budget runs out (a part skimming a surface), the
+    end of the frame decides.
     """
     physics = f.scene.physics
     tol = physics.contact_tolerance
@@ -281,27 +340,45 @@ def _time_of_contact(f: _Frame, body: Body, start: free.Flight, near: tuple[int,
         omega_max = sp.norm(start.omega_world)
     else:
         omega_max = sp.norm(start.momentum_principal) / body.principal_moments[0]
+    span = t_b - t_a
+
+    def distance(t: int, pose: sp.Pose):
+        d, which = (f.collision.distance_to_environment(body.name, pose, near) if near
+                    else (float("inf"), -1))
+        if base is not None:
+            base_pose = base.at((t - t_a) / span if span else 1.0)
+            d_base = f.collision.distance_to_base(body.name, base_pose.inverse().compose(pose))
+            if d_base < d:
+                return d_base, None
+        return d, which
+
+    base_speed = 0.0
+    if base is not None:
+        # Any base point the part can reach lies within this of the base origin.
+        arm = sp.norm(sp.sub(pose_a.position, base.start.position)) + reach
+        base_speed = base.speed + base.omega * arm
     t, pose = t_a, pose_a
     for _ in range(_CA_MAX_ITERATIONS):
-        d, which = f.collision.distance_to_environment(body.name, pose, near)
+        d, which = distance(t, pose)
         if d <= tol:
             return t, pose, which
         _, v = free.cm_at(start, t, physics.gravity_free)
-        speed = sp.norm(v) + g * (t_b - t) * 1e-9 + omega_max * body.radius_about_cm
+        speed = sp.norm(v) + g * (t_b - t) * 1e-9 + omega_max * body.radius_about_cm \
+            + base_speed
         if speed <= 0.0:
             return None
         t_next = t + max(1, int((d - 0.5 * tol) / speed * 1e9))
         if t_next >= t_b:
-            d_b, which_b = f.collision.distance_to_environment(body.name, pose_b, near)
-            return (t_b, pose_b, which_b) if d_b <= tol else None
+            break
         t = t_next
         pose = _flight_pose(f, body, start, t)[3]
-    return t, pose, which
+    d_b, which_b = distance(t_b, pose_b)
+    return (t_b, pose_b, which_b) if d_b <= tol else None
 
 
 # --- constrained motion on the base (paper 5.2, 5.3, 6) -----------------------------------
 
-_CA_BASE_ITERATIONS = 64
+_CA_BASE_ITERATIONS = 4096
 _CONTACT_SLACK_M = 1e-9  # round-off allowance for a part moving along an obstacle it touches
 
 
@@ -416,7 +493,7 @@ def _leave(f: _Frame, index: int, cause: Cause, rel: sp.Pose, v_rel: sp.Vec3,
     flight = free.start(t_ns=f.t_ns, cm=pose.apply(body.center_of_mass), velocity=v,
                         omega_world=w, world_from_part=pose,
                         part_from_principal=body.part_from_principal,
-                        principal_moments=body.principal_moments)
+                        principal_moments=body.principal_moments, base_clear=False)
     f.change_mode(index, PartState(part.name, Mode.INSPACE, pose, v, w, flight), cause)
 
 
@@ -617,7 +694,9 @@ def _sweep(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, x1: tuple[float, ...
                 hit = lam
                 break
         else:
-            hit = lam
+            # Out of budget (skimming along an obstacle): only a real contact blocks.
+            d = distance(x1, a1)
+            hit = 1.0 if d <= tol else None
     if hit is None:
         if mate.turn:
             c, sign = cn.axial_offset(mate, m.base_from_snap)

@@ -38,11 +38,14 @@ class Flight:
     world_from_principal: sp.Quat
     momentum_principal: sp.Vec3   # angular momentum in principal axes (momentum model)
     omega_world: sp.Vec3          # constant angular velocity (constant_omega model)
+    # False while a part that left the base still touches it: the base does not stop it
+    # until the two have separated once.
+    base_clear: bool = True
 
 
 def start(*, t_ns: int, cm: sp.Vec3, velocity: sp.Vec3, omega_world: sp.Vec3,
           world_from_part: sp.Pose, part_from_principal: sp.Quat,
-          principal_moments: sp.Vec3) -> Flight:
+          principal_moments: sp.Vec3, base_clear: bool = True) -> Flight:
     """Flight state from a release: CM position and velocity, angular velocity, part pose."""
     world_from_principal = sp.quat_normalize(sp.quat_mul(world_from_part.rotation,
                                                          part_from_principal))
@@ -50,7 +53,8 @@ def start(*, t_ns: int, cm: sp.Vec3, velocity: sp.Vec3, omega_world: sp.Vec3,
     momentum = (principal_moments[0] * omega_principal[0],
                 principal_moments[1] * omega_principal[1],
                 principal_moments[2] * omega_principal[2])
-    return Flight(t_ns, cm, velocity, t_ns, world_from_principal, momentum, omega_world)
+    return Flight(t_ns, cm, velocity, t_ns, world_from_principal, momentum, omega_world,
+                  base_clear)
 
 
 def cm_at(flight: Flight, t_ns: int, gravity: sp.Vec3) -> tuple[sp.Vec3, sp.Vec3]:
@@ -117,10 +121,11 @@ def advance(flight: Flight, t_ns: int, *, model: str, moments: sp.Vec3, order: i
         q = sp.quat_normalize(sp.quat_mul(sp.quat_from_rotvec(sp.scale(flight.omega_world, dt)),
                                           flight.world_from_principal))
         return Flight(flight.t0_ns, flight.cm0, flight.v0, t_ns, q, flight.momentum_principal,
-                      flight.omega_world)
+                      flight.omega_world, flight.base_clear)
     q, m = rotate_momentum(flight.world_from_principal, flight.momentum_principal, dt, moments,
                            order=order, max_step_s=max_step_s)
-    return Flight(flight.t0_ns, flight.cm0, flight.v0, t_ns, q, m, flight.omega_world)
+    return Flight(flight.t0_ns, flight.cm0, flight.v0, t_ns, q, m, flight.omega_world,
+                  flight.base_clear)
 
 
 def omega_world(flight: Flight, *, model: str, moments: sp.Vec3) -> sp.Vec3:

@@ -20,9 +20,14 @@ sub-step, under the gravity that its current orientation implies.
 Sliding (per unit mass): ``g_t`` is gravity along the allowed directions, ``N`` the normal
 load. At rest it starts when ``|g_t| > f_s N``; moving, ``a = g_t - f_d N v/|v|``; a sub-step
 that would reverse the velocity stops the part at the instant the velocity reaches zero,
-and the static test decides the rest of the sub-step. Each sub-step is the exact
-constant-acceleration update with gravity sampled at the sub-step's mid time: exact for a
-still base (to round-off), second order in the sub-step for a turning one.
+and the static test decides the rest of the sub-step. Each sub-step is the constant-
+acceleration update with gravity sampled at the sub-step's mid time and the friction
+direction frozen at the sub-step's start. That is exact (to round-off) while the velocity
+stays along ``g_t``: any sliding along an axis, and sliding on a plane that starts from rest
+under a still base. On a plane with the velocity across ``g_t`` (after the base turned, or
+along a wall) the friction direction turns within a sub-step and the scheme is first order
+in the sub-step (measured: 2.7e-3 m after 1 s at 4 sub-steps per frame, 2.7e-4 m at 40, on
+a 30 degree incline with f_d 0.2 and 1 m/s across the slope).
 
 Turning: ``J w' = m ((r_perp x g) . u) - f_r w`` with ``r_perp(theta)`` the CM offset turned
 by ``theta`` about the shaft. Integrators:

@@ -1,11 +1,18 @@
 """Velocities of a held part from its recent poses (paper 5.1, NOTES.md).
 
-``two_frame`` is the paper's estimate from the last two poses. ``window_fit`` fits a
-straight line, by least squares, to the last ``window`` positions and rotation vectors
-(taken relative to the newest orientation) and returns the slopes: tracker noise is
-averaged instead of amplified. Samples with equal timestamps (a duplicated tracker sample)
-carry no rate information; when the samples span no time, the velocity is zero rather than
-a division by zero.
+``two_frame`` is the paper's estimate from the last two poses: the velocity at the middle
+of the last interval, with the tracker noise amplified by ``sqrt(2) / dt``.
+
+``window_fit`` fits a quadratic in time, by least squares, to the last ``window`` positions
+and rotation vectors (taken relative to the newest orientation), and returns its slope at
+the newest sample. A straight line would be the velocity at the middle of the window and lag
+a hand that accelerates into the throw (by ``a * span / 2``: 0.67 m/s at 20 m/s^2 over five
+60 Hz samples); the quadratic has no lag under constant acceleration, and over seven samples
+it still halves the two-frame noise (gain 0.68/dt against 1.41/dt).
+
+Samples with equal timestamps (a duplicated tracker sample) carry no rate information: only
+the newest of them is used. With fewer than three distinct times the fit is a line, with
+fewer than two the velocity is zero, never a division by zero.
 """
 
 from __future__ import annotations
@@ -15,32 +22,54 @@ from .. import spatial as sp
 Sample = tuple[int, sp.Vec3, sp.Quat]  # time_ns, world CM, world rotation of the part
 
 
-def _slope(times: list[float], values: list[sp.Vec3]) -> sp.Vec3:
+def _distinct(history: tuple[Sample, ...]) -> list[Sample]:
+    """Newest sample of each time, oldest first."""
+    out: list[Sample] = []
+    for sample in history:
+        if out and out[-1][0] == sample[0]:
+            out[-1] = sample
+        else:
+            out.append(sample)
+    return out
+
+
+def _slope_at_zero(times: list[float], values: list[sp.Vec3]) -> sp.Vec3:
+    """d/dt at t = 0 of the least-squares polynomial (degree 2, or 1 for two points)."""
     n = len(times)
-    t_mean = sum(times) / n
-    denom = sum((t - t_mean) ** 2 for t in times)
-    if denom <= 0.0:
+    if n < 2:
+        return sp.ZERO3
+    if n == 2:
+        dt = times[1] - times[0]
+        return sp.scale(sp.sub(values[1], values[0]), 1.0 / dt)
+    # Normal equations of x(t) = c0 + c1 t + c2 t^2; the slope at 0 is c1 (Cramer's rule).
+    s1 = sum(times)
+    s2 = sum(t * t for t in times)
+    s3 = sum(t * t * t for t in times)
+    s4 = sum(t * t * t * t for t in times)
+    det = n * (s2 * s4 - s3 * s3) - s1 * (s1 * s4 - s3 * s2) + s2 * (s1 * s3 - s2 * s2)
+    if det == 0.0:
         return sp.ZERO3
     out = []
     for axis in range(3):
-        v_mean = sum(v[axis] for v in values) / n
-        out.append(sum((t - t_mean) * (v[axis] - v_mean) for t, v in zip(times, values)) / denom)
+        y0 = sum(v[axis] for v in values)
+        y1 = sum(t * v[axis] for t, v in zip(times, values))
+        y2 = sum(t * t * v[axis] for t, v in zip(times, values))
+        det1 = n * (y1 * s4 - s3 * y2) - y0 * (s1 * s4 - s3 * s2) + s2 * (s1 * y2 - y1 * s2)
+        out.append(det1 / det)
     return (out[0], out[1], out[2])
 
 
 def estimate(history: tuple[Sample, ...], *, method: str, window: int) -> tuple[sp.Vec3, sp.Vec3]:
-    """Linear and angular velocity (world) at the newest sample of ``history``."""
-    if len(history) < 2:
+    """Linear and angular velocity (world) of the part at the newest sample of ``history``."""
+    samples = _distinct(history)
+    if len(samples) < 2:
         return sp.ZERO3, sp.ZERO3
-    if method == "two_frame":
-        samples = history[-2:]
-    else:
-        samples = history[-window:]
+    samples = samples[-2:] if method == "two_frame" else samples[-window:]
     t_last, _, q_last = samples[-1]
     inv_last = sp.quat_conj(q_last)
+    # Times in seconds before the newest sample; rotation vectors relative to the newest
+    # orientation, in world axes: for a constant angular velocity w they are exactly t w.
     times = [(t - t_last) * 1e-9 for t, _, _ in samples]
     positions = [p for _, p, _ in samples]
-    # World-frame rotation vectors relative to the newest orientation: for a constant
-    # angular velocity w they are exactly (t - t_last) w.
     rotvecs = [sp.quat_to_rotvec(sp.quat_mul(q, inv_last)) for _, _, q in samples]
-    return _slope(times, positions), _slope(times, rotvecs)
+    return _slope_at_zero(times, positions), _slope_at_zero(times, rotvecs)
