@@ -33,7 +33,7 @@ def main(argv: list[str] | None = None) -> int:
     summary = record(session, out, on_frame=progress.update)
     progress.close()
     if args.json:
-        print_json(summary.__dict__ | {"output": str(out)})
+        print_json(summary.to_dict() | {"output": str(out)})
     else:
         print(f"recorded {summary.frames} frames ({summary.duration_s:.2f} s, "
               f"{summary.transitions} transitions) of {session.name} to {out}")

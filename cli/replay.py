@@ -57,7 +57,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"warning: {recording.path}: the recording was cut short (no end records); "
               f"replayed the {summary.frames} complete frames it holds", file=sys.stderr)
     if args.json:
-        print_json(summary.__dict__)
+        print_json(summary.to_dict())
     elif summary.match:
         print(f"match: {summary.frames} frames ({summary.duration_s:.2f} s), "
               f"{summary.messages_checked} derived messages identical to the recording")

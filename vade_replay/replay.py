@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Callable, Iterable, Iterator
 
 from . import codec
+from .analysis import SessionAnalysis
 from .collision import CollisionWorld
 from .errors import ConfigError, SessionError, VadeError
 from .frames import FrameRecord, TrackerFrame
@@ -74,8 +75,16 @@ class RunSummary:
     overrides: dict = field(default_factory=dict)
     counters: dict = field(default_factory=dict)
     truncated: bool = False
+    analysis: SessionAnalysis = field(default_factory=SessionAnalysis)
+
+    def to_dict(self) -> dict:
+        """JSON-ready: what ``--json`` prints."""
+        out = {k: v for k, v in self.__dict__.items() if k != "analysis"}
+        out["analysis"] = self.analysis.result()
+        return out
 
     def count(self, record: FrameRecord, first_time_ns: int) -> None:
+        self.analysis.add(record)
         self.frames += 1
         self.duration_s = (record.time_ns - first_time_ns) * 1e-9
         for event in record.events:

@@ -1,0 +1,53 @@
+"""The session analysis: time per state, grabs, drops, placement, from the events."""
+
+from __future__ import annotations
+
+import pytest
+
+from conftest import RECORDINGS, run_cli
+from vade_replay.recording import Recording
+from vade_replay.replay import replay
+
+
+def _t(frame: int) -> float:
+    return (frame * 10**9 // 60) * 1e-9
+
+
+def test_drop_on_table_in_numbers():
+    analysis = replay(Recording(RECORDINGS / "drop_on_table.mcap")).to_dict()["analysis"]
+    peg = analysis["parts"]["peg"]
+    # Grabbed at frame 42, released at 84, on the table at 115, session ends at frame 150.
+    assert peg["grabs"] == 1 and peg["releases"] == 1 and peg["drops"] == 1
+    assert peg["catches"] == 0 and peg["placed_at_s"] is None
+    times = peg["time_in_state_s"]
+    assert times["INHAND"] == pytest.approx(_t(84) - _t(42), abs=1e-9)
+    assert times["INSPACE"] == pytest.approx(_t(115) - _t(84), abs=1e-9)
+    assert times["STATIC"] == pytest.approx(_t(42) + _t(150) - _t(115), abs=1e-9)
+    assert sum(times.values()) == pytest.approx(2.5, abs=1e-9)
+
+
+@pytest.mark.parametrize("golden", sorted(RECORDINGS.glob("*.mcap")), ids=lambda p: p.stem)
+def test_counts_match_the_recorded_events(golden):
+    recording = Recording(golden)
+    summary = replay(recording).to_dict()
+    from vade_replay.replay import recorded_record
+
+    events = [e for f in recording.frames() for e in recorded_record(f).events]
+    for name, stats in summary["analysis"]["parts"].items():
+        mine = [e for e in events if e.part == name]
+        assert stats["grabs"] == sum(e.kind == "PartGrabbed" for e in mine)
+        assert stats["releases"] == sum(e.kind == "PartReleased" for e in mine)
+        placed = [e for e in mine if e.kind == "ModeChanged" and e.to_mode == "PLACED"]
+        assert (stats["placed_at_s"] is None) == (not placed)
+        assert sum(stats["time_in_state_s"].values()) == pytest.approx(summary["duration_s"],
+                                                                     abs=1e-9)
+
+
+def test_placement_time_and_refusals_reach_the_json():
+    result = run_cli("vade-replay", str(RECORDINGS / "shaft_placed.mcap"), "--json")
+    import json
+
+    analysis = json.loads(result.stdout)["analysis"]
+    (stats,) = analysis["parts"].values()
+    assert stats["placed_at_s"] is not None and stats["placed_at_s"] > 0
+    assert "PLACED" in stats["time_in_state_s"]
