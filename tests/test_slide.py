@@ -8,6 +8,7 @@ import pytest
 
 from _onbase import G, on_base, plate_scene, run, tilt_x
 from vade_replay import spatial as sp
+from vade_replay.dynamics import onbase
 from vade_replay.modes import Mode
 
 FS, FD = 0.3, 0.2
@@ -113,3 +114,157 @@ def test_paper_slide_model_is_selectable():
     a = G * (math.sin(th) - FD * math.cos(th))
     t = state.time_ns * 1e-9
     assert math.hypot(*state.parts[0].motion.slide) == pytest.approx(0.5 * a * t * t, rel=1e-6)
+
+
+# --- a plane with the velocity across the slope: the friction direction turns -------------
+
+def _coulomb_reference(gt_of_t, n_of_t, fd, v0, t_end, t_eval):
+    """DOP853 (rtol 1e-12) on x' = v, v' = g_t(t) - f_d N(t) v/|v|, stopped at zero speed.
+
+    ``|v|`` touches zero without changing sign, so the terminal event is at 1e-9 m/s: the
+    part still moves ``|v|^2 / (2 (f_d N - |g_t|))`` < 1e-17 m after it."""
+    from scipy.integrate import solve_ivp
+
+    def rhs(t, y):
+        s = math.hypot(y[2], y[3])
+        gt, c = gt_of_t(t), fd * n_of_t(t)
+        return [y[2], y[3], gt[0] - c * y[2] / s, gt[1] - c * y[3] / s]
+
+    def stop(t, y):
+        return math.hypot(y[2], y[3]) - 1e-9
+    stop.terminal = True
+    sol = solve_ivp(rhs, (0.0, t_end), [0.0, 0.0, *v0], method="DOP853", rtol=1e-12,
+                    atol=1e-15, events=stop, dense_output=True)
+    t_stop = sol.t_events[0][0] if sol.t_events[0].size else None
+
+    def x_at(t):
+        y = sol.sol(min(t, sol.t[-1]))
+        return float(y[0]), float(y[1])
+    return [x_at(t) for t in t_eval], t_stop
+
+
+def _still_incline(theta_deg, size=(8.0, 8.0, 0.04)):
+    scene = plate_scene(size=size)
+    base = tilt_x(theta_deg)
+    mate = scene.parts[0].assembly.mates[0]
+    g = sp.quat_rotate(sp.quat_conj(base.rotation), scene.physics.gravity_slide)
+    gt = onbase.tangential(mate.slide_dirs, g)
+    n_load, _ = onbase.normal_load(mate.kind, mate.base_dirs, None, g)
+    return scene, base, gt, n_load
+
+
+def test_across_a_still_incline_matches_a_dop853_reference():
+    """30 degrees, f_d 0.2, 1 m/s across the slope, 60 Hz, 1/240 s sub-steps: the friction
+    direction turns as the part turns downhill. The ``midpoint`` scheme was 2.7e-3 m off."""
+    scene, base, gt, n_load = _still_incline(-30.0)
+    v0 = (0.0, 1.0)  # the slide basis is (base y = downhill, -base x = across)
+    assert abs(gt[1]) < 1e-12 and gt[0] > 4.0
+    state = on_base(scene, base, sp.Pose((0.0, -2.0, 0.04)), mode=Mode.ONBASESLIDE,
+                    slide_rate=v0)
+    record = list(run(scene, state, 60))
+    times = [s.time_ns * 1e-9 for _, s, _ in record]
+    ref, t_stop = _coulomb_reference(lambda t: gt, lambda t: n_load, FD, v0, 1.0, times)
+    assert t_stop is None
+    worst = max(math.dist(s.parts[0].motion.slide, r) for (_, s, _), r in zip(record, ref))
+    assert worst < 1e-7, worst
+    assert record[-1][1].parts[0].mode is Mode.ONBASESLIDE
+    assert math.dist(record[-1][1].parts[0].motion.slide, (0.0, 0.0)) > 1.5  # it went far
+
+
+def test_across_a_shallow_incline_stops_where_the_reference_stops_and_stays():
+    """10 degrees (tan 10 < f_d): the part turns downhill, slows, stops at t = 0.698 s on the
+    reference's stop point, and static friction holds it. It never moves backwards."""
+    scene, base, gt, n_load = _still_incline(-10.0)
+    v0 = (0.0, 0.3)
+    state = on_base(scene, base, sp.Pose((0.0, 0.0, 0.04)), mode=Mode.ONBASESLIDE,
+                    slide_rate=v0)
+    record = list(run(scene, state, 90))
+    times = [s.time_ns * 1e-9 for _, s, _ in record]
+    ref, t_stop = _coulomb_reference(lambda t: gt, lambda t: n_load, FD, v0, 1.5, times)
+    assert t_stop == pytest.approx(0.6978, abs=1e-4)
+    worst = max(math.dist(s.parts[0].motion.slide, r) for (_, s, _), r in zip(record, ref))
+    assert worst < 1e-7, worst
+    stopped_at, prev_v, prev_speed = None, v0, math.hypot(*v0)
+    for (n, s, events), t in zip(record, times):
+        v = s.parts[0].motion.slide_rate
+        speed = math.hypot(*v)
+        assert speed <= prev_speed and v[0] * prev_v[0] + v[1] * prev_v[1] >= 0.0
+        prev_v, prev_speed = v, speed
+        if events:
+            assert stopped_at is None and [e.cause for e in events] == ["held_by_friction"]
+            stopped_at = t
+    assert 0.0 <= stopped_at - t_stop < 1.0 / 60.0
+    at_stop = [s.parts[0].pose for _, s, _ in record if s.time_ns * 1e-9 >= stopped_at]
+    assert all(p == at_stop[0] for p in at_stop)
+    assert record[-1][1].parts[0].mode is Mode.ONBASESTATIC
+    assert record[-1][1].parts[0].motion.slide_rate == (0.0, 0.0)
+
+
+def _plane_dirs():
+    """The plate's slide basis in base axes (normal +z): (base y, -base x)."""
+    return plate_scene().parts[0].assembly.mates[0].slide_dirs
+
+
+def _slide_frames(path_of_frame, v0, steps, integrator, frames=60, fd=FD):
+    """``onbase.slide`` over ``frames`` 60 Hz frames on the plate's plane."""
+    dirs = _plane_dirs()
+    x, v = (0.0, 0.0), v0
+    for k in range(frames):
+        x, v = onbase.slide("plane", ((0.0, 0.0, 1.0),), None, dirs, path_of_frame(k), x, v,
+                            1.0 / 60.0, steps, f_static=FS, f_dynamic=fd, blocked=(),
+                            integrator=integrator)
+    return x, v
+
+
+def _turning_base(rate):
+    """Tilted 30 degrees about x and turning about its own normal at ``rate`` rad/s."""
+    def q(t):
+        return sp.quat_mul(sp.quat_axis_angle((1.0, 0.0, 0.0), math.radians(30.0)),
+                           sp.quat_axis_angle((0.0, 0.0, 1.0), rate * t))
+
+    def g(t):
+        return sp.quat_rotate(sp.quat_conj(q(t)), (0.0, 0.0, -G))
+
+    def path(k):
+        return onbase.GravityPath((0.0, 0.0, -G), q(k / 60.0), q((k + 1) / 60.0))
+    dirs = _plane_dirs()
+    return path, (lambda t: onbase.tangential(dirs, g(t))), (lambda t: -g(t)[2])
+
+
+def test_plane_sliding_order_exact_on_a_still_base_second_order_while_it_turns():
+    """Halving the sub-step: under a still base the error is round-off at any sub-step;
+    while the base turns (1 rad/s about its normal) it falls 4x (gravity is held at the
+    sub-step's mid time); the frozen friction direction of ``midpoint`` falls only 2x."""
+    v0 = (0.0, 1.0)
+    still, gt_still, n_still = _turning_base(0.0)
+    ref_still = _coulomb_reference(gt_still, n_still, FD, v0, 1.0, [1.0])[0][0]
+    for steps in (1, 4):
+        assert math.dist(_slide_frames(still, v0, steps, "analytic")[0], ref_still) < 1e-11
+    e_mid = [math.dist(_slide_frames(still, v0, s, "midpoint")[0], ref_still) for s in (4, 8)]
+    assert e_mid[0] == pytest.approx(2.7e-3, rel=0.05)
+    assert 1.9 < e_mid[0] / e_mid[1] < 2.1
+    turning, gt_turn, n_turn = _turning_base(1.0)
+    ref_turn = _coulomb_reference(gt_turn, n_turn, FD, v0, 1.0, [1.0])[0][0]
+    errors = [math.dist(_slide_frames(turning, v0, s, "analytic")[0], ref_turn)
+              for s in (4, 8, 16)]
+    assert errors[0] < 1e-5
+    for coarse, fine in zip(errors, errors[1:]):
+        assert 3.8 < coarse / fine < 4.2, errors
+
+
+def test_along_the_slope_and_on_an_axis_the_schemes_agree_bit_for_bit():
+    """Velocity along g_t (from rest, base tilting about a horizontal axis) and any axis:
+    ``analytic`` is the constant-acceleration update of ``midpoint``, to the last bit."""
+    def q(t):
+        return sp.quat_axis_angle((1.0, 0.0, 0.0), math.radians(25.0) + 0.5 * t)
+
+    def path(k):
+        return onbase.GravityPath((0.0, 0.0, -G), q(k / 60.0), q((k + 1) / 60.0))
+    for v0 in ((0.0, 0.0), (-0.4, 0.0), (0.7, 0.0)):
+        assert _slide_frames(path, v0, 4, "analytic") == _slide_frames(path, v0, 4, "midpoint")
+    axis = ((0.0, 1.0, 0.0),)
+    for v0 in ((0.0,), (-0.5,), (0.8,)):
+        out = [onbase.slide("axis", axis, axis[0], axis, path(3), v0, v0, 1.0 / 60.0, 4,
+                            f_static=FS, f_dynamic=FD, blocked=(), integrator=i)
+               for i in ("analytic", "midpoint")]
+        assert out[0] == out[1]

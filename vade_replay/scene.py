@@ -52,7 +52,7 @@ class Physics:
     friction_static: float = 0.3
     friction_dynamic: float = 0.2
     friction_rotational: float = 0.0         # N m s / rad
-    slide_integrator: str = "midpoint"       # paper: eq. 4 once per frame
+    slide_integrator: str = "analytic"       # midpoint: the older scheme; paper: eq. 4
     turn_integrator: str = "yoshida6"        # paper: eq. 11 once per frame
     onbase_max_step_s: float = 1.0 / 240.0   # sub-step bound for both
 
