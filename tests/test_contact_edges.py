@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 from conftest import RECORDINGS, run_records, session_doc, table
+from vade_replay import spatial as sp
 
 
 def _transitions(records):
@@ -41,17 +42,33 @@ def _plane_block_wall(**edits):
     return doc
 
 
-def test_a_part_dropped_onto_the_base_stops_on_it_not_through_it():
+def test_a_part_dropped_onto_the_base_lands_on_it_and_rides_with_it():
     # The block is let go 5 cm above the plate, too far to snap onto its plane constraint.
+    # The base then tilts (15 deg, 30 deg) and, in the second run, turns over.
     doc = _plane_block_wall(**{"tracker/devices/right_hand/2/position/2": 1.032})
     records = run_records(doc)
     assert ("INHAND", "INSPACE", "released") in _transitions(records)
-    assert ("INSPACE", "STATIC", "hit_base_part") in _transitions(records)
+    assert ("INSPACE", "ONBASESTATIC", "landed_on_base") in _transitions(records)
     contact = [e for r in records for e in r.events if e.kind == "ContactMade"]
-    assert contact[0].other == "plate_with_wall"
-    # Resting on the plate top (z 0.96) with its bottom face, within the tolerance.
-    bottom = records[-1].parts[0].position[2] - 0.02
-    assert 0.96 <= bottom <= 0.96 + 1e-4
+    assert contact[0].other == "plate_with_wall" and contact[0].cause == "hit_base_part"
+    landed = next(r.frame for r in records for e in r.events if e.cause == "landed_on_base")
+    # Lying on the plate top (z 0.01 in base axes) with its bottom face, within the tolerance,
+    # and fixed relative to the base from then on, while the base tilts.
+    rel = []
+    for r in records[landed:]:
+        base = sp.Pose(r.base.position, r.base.rotation_xyzw)
+        part = sp.Pose(r.parts[0].position, r.parts[0].rotation_xyzw)
+        rel.append(base.inverse().compose(part))
+    assert 0.01 <= rel[0].position[2] - 0.02 <= 0.01 + 1e-4
+    for later in rel:
+        assert sp.norm(sp.sub(later.position, rel[0].position)) < 1e-12
+    assert records[-1].parts[0].mode == "ONBASESTATIC"
+
+    # Turned over (120 deg): gravity pulls it off, and it falls to the table.
+    doc["tracker"]["devices"]["left_hand"].append({"t": 3.5, "euler_deg": [-120, 0, 0]})
+    transitions = _transitions(run_records(doc))
+    assert ("ONBASESTATIC", "INSPACE", "gravity_lifts_off") in transitions
+    assert transitions[-1] == ("INSPACE", "STATIC", "hit_environment")
 
 
 def test_a_block_sliding_along_a_wall_is_not_blocked_by_it():
@@ -64,3 +81,19 @@ def test_a_block_sliding_along_a_wall_is_not_blocked_by_it():
     causes = [c for _, _, c in _transitions(run_records(doc))]
     assert "blocked_by_base" not in causes
     assert "slid_off_base" in causes
+
+
+def test_a_part_put_down_on_the_base_rides_with_it():
+    # No constraint on this block: let go resting on the plate (0.05 mm above it), then the
+    # user carries the base 0.5 m sideways. The block goes along, it does not hang in the air.
+    doc = _plane_block_wall(**{"tracker/devices/right_hand/2/position/2": 0.98005})
+    del doc["parts"][0]["assembly"]
+    doc["tracker"]["devices"]["left_hand"] = [
+        {"t": 0, "position": [0.0, 0.2, 0.95], "euler_deg": [0, 0, 0], "grip": True},
+        {"t": 1.5, "position": [0.0, 0.2, 0.95]}, {"t": 2.5, "position": [0.5, 0.2, 0.95]}]
+    records = run_records(doc)
+    assert ("INHAND", "ONBASESTATIC", "released_touching_base") in _transitions(records)
+    start, end = records[70], records[-1]
+    moved = sp.sub(end.parts[0].position, start.parts[0].position)
+    base_moved = sp.sub(end.base.position, start.base.position)
+    assert sp.norm(sp.sub(moved, base_moved)) < 1e-12 and base_moved[0] > 0.49

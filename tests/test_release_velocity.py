@@ -86,3 +86,26 @@ def test_duplicated_timestamps_are_skipped_not_divided_by():
     for method in ("window_fit", "two_frame"):
         v, w = velocity.estimate(tuple(history), method=method, window=WINDOW)
         assert np.allclose(v, V_TRUE, atol=1e-9) and np.allclose(w, W_TRUE, atol=1e-9)
+
+
+def test_fast_spins_are_not_folded_back():
+    # 100 rad/s turns 1.67 rad per 60 Hz frame: more than half a turn over the window.
+    global W_TRUE
+    saved = W_TRUE
+    try:
+        for spin in (35.0, 60.0, 100.0):
+            W_TRUE = np.array([0.0, spin, 0.0])
+            history = _history(np.random.default_rng(0), pos_std=0.0, rot_std=0.0)
+            for method in ("window_fit", "two_frame"):
+                _, w = velocity.estimate(history, method=method, window=WINDOW)
+                assert np.allclose(w, W_TRUE, atol=1e-6), (spin, method, w)
+    finally:
+        W_TRUE = saved
+
+
+def test_samples_microseconds_apart_do_not_make_huge_velocities():
+    history = list(_history(np.random.default_rng(2), pos_std=0.0, rot_std=0.0))
+    t, p, q = history[-1]
+    history.append((t + 1000, (p[0] + 5e-4, p[1], p[2]), q))  # 1 us later, 0.5 mm of noise
+    v, _ = velocity.estimate(tuple(history), method="window_fit", window=WINDOW)
+    assert np.linalg.norm(np.array(v) - V_TRUE) < 0.1

@@ -21,7 +21,8 @@ class PartStats:
     catches: int = 0
     releases: int = 0
     drops: int = 0              # flights that ended on the table, another object or the base
-    slid_off: int = 0
+    slid_off: int = 0           # left the base: off an end or edge
+    lifted_off: int = 0         # left the base: the base turned so gravity pulled it off
     blocked: int = 0
     placed_at_s: float | None = None
 
@@ -69,10 +70,12 @@ class SessionAnalysis:
         elif event.kind == "PartReleased":
             stats.releases += 1
         elif event.kind == "ModeChanged":
-            if event.from_mode == "INSPACE" and event.to_mode == "STATIC":
+            if event.cause in ("hit_environment", "hit_base_part", "landed_on_base"):
                 stats.drops += 1
             elif event.cause == "slid_off_base":
                 stats.slid_off += 1
+            elif event.cause == "gravity_lifts_off":
+                stats.lifted_off += 1
             elif event.cause == "blocked_by_base":
                 stats.blocked += 1
             if event.to_mode == "PLACED" and stats.placed_at_s is None:

@@ -29,9 +29,10 @@ class Cause(str, Enum):
     RELEASED_ON_TABLE = "released_touching_environment"
     RELEASED_ON_BASE = "released_on_constraint"
     RELEASED_ON_BASE_PART = "released_touching_base"  # touching the base, on no constraint
+    LANDED_ON_BASE = "landed_on_base"    # a flying part came to rest on the base part
     RELEASED_AT_FINAL_POSE = "released_at_final_pose"
     HIT_ENVIRONMENT = "hit_environment"  # stopped by the table or another environment object
-    HIT_BASE = "hit_base_part"           # a flying part stopped by the base part's geometry
+    HIT_BASE = "hit_base_part"           # a flying part touched the base part (ContactMade)
     BLOCKED = "blocked_by_base"          # sliding part met other base geometry
     FRICTION_HELD = "held_by_friction"   # sliding part stopped by friction and stays
     FRICTION_BROKEN = "static_friction_exceeded"  # base turned past the friction angle
@@ -59,13 +60,14 @@ def _allow(sources, target: Mode, *causes: Cause) -> None:
 _allow(_GRABBABLE, Mode.INHAND, Cause.GRABBED)
 _allow([Mode.INSPACE], Mode.INHAND, Cause.CAUGHT)
 _allow([Mode.INHAND], Mode.INSPACE, Cause.RELEASED)
-_allow([Mode.INHAND], Mode.STATIC, Cause.RELEASED_ON_TABLE, Cause.RELEASED_ON_BASE_PART)
+_allow([Mode.INHAND], Mode.STATIC, Cause.RELEASED_ON_TABLE)
+_allow([Mode.INHAND], Mode.ONBASESTATIC, Cause.RELEASED_ON_BASE_PART)
+_allow([Mode.INSPACE], Mode.ONBASESTATIC, Cause.LANDED_ON_BASE)
 _allow([Mode.INHAND], Mode.ONBASESLIDE, Cause.RELEASED_ON_BASE)
 _allow([Mode.INHAND], Mode.ONBASESTATIC, Cause.RELEASED_ON_BASE)
 _allow([Mode.INHAND, Mode.ONBASESLIDE], Mode.PLACED,
        Cause.RELEASED_AT_FINAL_POSE, Cause.REACHED_FINAL_POSE)
-_allow([Mode.INSPACE], Mode.STATIC, Cause.HIT_ENVIRONMENT, Cause.HIT_BASE,
-       Cause.NUMERICAL_FAULT)
+_allow([Mode.INSPACE], Mode.STATIC, Cause.HIT_ENVIRONMENT, Cause.NUMERICAL_FAULT)
 _allow([Mode.ONBASESLIDE], Mode.ONBASESTATIC, Cause.BLOCKED, Cause.FRICTION_HELD,
        Cause.NUMERICAL_FAULT)
 _allow([Mode.ONBASESTATIC], Mode.ONBASESLIDE, Cause.FRICTION_BROKEN)

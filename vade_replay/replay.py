@@ -22,7 +22,7 @@ from .collision import CollisionWorld
 from .errors import ConfigError, SessionError, VadeError
 from .frames import FrameRecord, TrackerFrame
 from .recording import RecordedFrame, Recording, RecordingWriter, ensure_writable
-from .scene import Scene
+from .scene import PAPER_DEFAULTS, Scene
 from .session import Session, parse, strict_json
 from .step import frame_record, initial_state, step
 
@@ -167,8 +167,9 @@ def apply_overrides(session: Session, overrides: dict[str, str]) -> tuple[Sessio
     Values are JSON (numbers, strings, lists) in the session's own units, exactly as they
     would be written in the session file; the changed document is validated against the
     session schema and the scene is built from it, so what depends on physics follows the
-    change (``model: paper`` brings the paper's integrators). A friction override applies to
-    every constraint, also those that set their own friction in the session.
+    change: ``model`` brings that model's own schemes (the session's explicit choices of
+    them are dropped unless also overridden), and a friction override applies to every
+    constraint, also those that set their own friction in the session.
     """
     if not overrides:
         return session, {}
@@ -187,6 +188,11 @@ def apply_overrides(session: Session, overrides: dict[str, str]) -> tuple[Sessio
             raise ConfigError(str(exc), field=key) from None
         physics[key[8:]] = value
         applied[key] = value
+        if key == "physics.model":
+            # A model what-if brings the model's own schemes, whatever the session chose.
+            for governed in PAPER_DEFAULTS:
+                if f"physics.{governed}" not in overrides:
+                    physics.pop(governed, None)
         if key[8:] in _FRICTION_KEYS:
             # A what-if of friction means every contact: constraints lose their own value.
             for part in doc.get("parts", []):

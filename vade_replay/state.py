@@ -45,6 +45,19 @@ class OnBase:
 
 
 @dataclass(frozen=True, slots=True)
+class Resting:
+    """A part lying on the base part on no recognised constraint: fixed relative to the base.
+
+    ``up`` (base axes) points away from the base at the support: against gravity when the
+    part came to rest. The part stays while gravity presses it towards the base, and
+    leaves when the base turns so that gravity pulls it away.
+    """
+
+    base_from_part: sp.Pose
+    up: sp.Vec3
+
+
+@dataclass(frozen=True, slots=True)
 class PartState:
     """One part's mode, world pose (of the part frame), CM velocities and mode-specific motion."""
 

@@ -19,7 +19,7 @@ from .events import ContactMade, Event, GrabRefused, ModeChanged, PartGrabbed, P
 from .frames import FrameRecord, PartSnapshot, TrackerFrame
 from .modes import Cause, Mode, check_transition
 from .scene import Body, Scene
-from .state import Held, OnBase, PartState, WorldState
+from .state import Held, OnBase, PartState, Resting, WorldState
 
 RIGHT, LEFT = "right_hand", "left_hand"
 _GRABBABLE = (Mode.STATIC, Mode.INSPACE, Mode.ONBASESLIDE, Mode.ONBASESTATIC, Mode.PLACED)
@@ -205,8 +205,7 @@ def _release(f: _Frame, index: int, hand: str) -> None:
         if f.collision.distance_to_base(part.name, base_from_part) <= physics.contact_tolerance:
             f.events.append(PartReleased(frame, part.name, Cause.RELEASED_ON_BASE_PART.value,
                                          hand, v, w))
-            f.change_mode(index, PartState(part.name, Mode.STATIC, part.pose),
-                          Cause.RELEASED_ON_BASE_PART)
+            _rest_on_base(f, index, base_from_part, Cause.RELEASED_ON_BASE_PART)
             return
     near = f.collision.environment_near(cm, body.radius_about_cm + physics.contact_tolerance)
     if near:
@@ -273,8 +272,7 @@ def _fly(f: _Frame, index: int) -> None:
     if not near and base is None:
         f.parts[index] = moved
         return
-    contact = _time_of_contact(f, body, start, near, base, t_a, t_b, part.pose, pose_b,
-                               reach + sp.norm(sp.sub(cm_b, cm_a)))
+    contact = _time_of_contact(f, body, start, near, base, t_a, t_b, part.pose, pose_b)
     if contact is None:
         f.parts[index] = moved
         return
@@ -282,11 +280,22 @@ def _fly(f: _Frame, index: int) -> None:
     if other is None:
         f.events.append(ContactMade(f.inputs.frame, part.name, Cause.HIT_BASE.value,
                                     f.scene.base.name, t_c))  # type: ignore[union-attr]
-        f.change_mode(index, PartState(part.name, Mode.STATIC, pose_c), Cause.HIT_BASE)
+        base_at_contact = base.at((t_c - t_a) / (t_b - t_a))  # type: ignore[union-attr]
+        _rest_on_base(f, index, base_at_contact.inverse().compose(pose_c), Cause.LANDED_ON_BASE)
         return
     f.events.append(ContactMade(f.inputs.frame, part.name, Cause.HIT_ENVIRONMENT.value,
                                 f.collision.environment_name(other), t_c))
     f.change_mode(index, PartState(part.name, Mode.STATIC, pose_c), Cause.HIT_ENVIRONMENT)
+
+
+def _rest_on_base(f: _Frame, index: int, base_from_part: sp.Pose, cause: Cause) -> None:
+    """Lie on the base on no constraint: ride with it until it turns gravity away."""
+    part = f.parts[index]
+    g = _to_base(f, f.scene.physics.gravity)
+    up = sp.scale(sp.normalize(g), -1.0) if sp.norm(g) > 0.0 else (0.0, 0.0, 1.0)
+    pose = f.base_pose.compose(base_from_part)  # type: ignore[union-attr]
+    f.change_mode(index, PartState(part.name, Mode.ONBASESTATIC, pose, sp.ZERO3, sp.ZERO3,
+                                   Resting(base_from_part, up)), cause)
 
 
 @dataclass(frozen=True)
@@ -322,7 +331,7 @@ def _base_path(f: _Frame, center: sp.Vec3, reach: float) -> _BasePath | None:
 
 def _time_of_contact(f: _Frame, body: Body, start: free.Flight, near: tuple[int, ...],
                      base: _BasePath | None, t_a: int, t_b: int, pose_a: sp.Pose,
-                     pose_b: sp.Pose, reach: float):
+                     pose_b: sp.Pose):
     """First time in [t_a, t_b] at which the part comes within the contact tolerance of an
     environment object or of the (moving) base part: ``(time, pose, index)``, with index
     ``None`` for the base, or ``None`` when there is no contact.
@@ -339,7 +348,7 @@ def _time_of_contact(f: _Frame, body: Body, start: free.Flight, near: tuple[int,
     if physics.free_rotation == "constant_omega":
         omega_max = sp.norm(start.omega_world)
     else:
-        omega_max = sp.norm(start.momentum_principal) / body.principal_moments[0]
+        omega_max = free.max_angular_speed(start.momentum_principal, body.principal_moments)
     span = t_b - t_a
 
     def distance(t: int, pose: sp.Pose):
@@ -354,9 +363,9 @@ def _time_of_contact(f: _Frame, body: Body, start: free.Flight, near: tuple[int,
 
     base_speed = 0.0
     if base is not None:
-        # Any base point the part can reach lies within this of the base origin.
-        arm = sp.norm(sp.sub(pose_a.position, base.start.position)) + reach
-        base_speed = base.speed + base.omega * arm
+        # Every point of the base is within base_radius of its origin, which moves at
+        # base.speed while the base turns at base.omega (linear and slerp interpolation).
+        base_speed = base.speed + base.omega * f.collision.base_radius
     t, pose = t_a, pose_a
     for _ in range(_CA_MAX_ITERATIONS):
         d, which = distance(t, pose)
@@ -373,7 +382,22 @@ def _time_of_contact(f: _Frame, body: Body, start: free.Flight, near: tuple[int,
         t = t_next
         pose = _flight_pose(f, body, start, t)[3]
     d_b, which_b = distance(t_b, pose_b)
-    return (t_b, pose_b, which_b) if d_b <= tol else None
+    if d_b > tol:
+        return None
+    # Out of budget and touching at the frame's end: bisect for where it came within the
+    # tolerance, so the part stops at the surface, not inside it.
+    lo, hi, hit = t, t_b, (t_b, pose_b, which_b)
+    for _ in range(60):
+        if hi - lo <= 1:
+            break
+        mid = (lo + hi) // 2
+        pose_mid = _flight_pose(f, body, start, mid)[3]
+        d_mid, which_mid = distance(mid, pose_mid)
+        if d_mid <= tol:
+            hi, hit = mid, (mid, pose_mid, which_mid)
+        else:
+            lo = mid
+    return hit
 
 
 # --- constrained motion on the base (paper 5.2, 5.3, 6) -----------------------------------
@@ -503,6 +527,12 @@ def _check_resting_on_base(f: _Frame) -> None:
         if part.mode is not Mode.ONBASESTATIC or f.base_pose is None:
             continue
         body = f.scene.parts[index]
+        if isinstance(part.motion, Resting):
+            # No constraint: it stays while gravity presses it onto the base.
+            rest = part.motion
+            if sp.dot(_to_base(f, f.scene.physics.gravity), rest.up) >= 0.0:
+                _leave(f, index, Cause.LIFTED_OFF, rest.base_from_part, sp.ZERO3, sp.ZERO3)
+            continue
         m: OnBase = part.motion  # type: ignore[assignment]
         mate = body.assembly.mates[m.mate]  # type: ignore[union-attr]
         lifted, slides, turns = _drive(f, body, mate, m)
@@ -519,9 +549,12 @@ def _carry_with_base(f: _Frame) -> None:
         return
     for index, part in enumerate(f.parts):
         if part.mode is Mode.ONBASESTATIC:
-            m: OnBase = part.motion  # type: ignore[assignment]
-            mate = f.scene.parts[index].assembly.mates[m.mate]  # type: ignore[union-attr]
-            rel = cn.relative_pose(mate, m.base_from_snap, m.slide, m.angle)
+            m = part.motion
+            if isinstance(m, Resting):
+                rel = m.base_from_part
+            else:
+                mate = f.scene.parts[index].assembly.mates[m.mate]  # type: ignore[union-attr]
+                rel = cn.relative_pose(mate, m.base_from_snap, m.slide, m.angle)
             f.parts[index] = replace(part, pose=f.base_pose.compose(rel),
                                      linear_velocity=sp.ZERO3, angular_velocity=sp.ZERO3)
         elif part.mode is Mode.PLACED:

@@ -10,9 +10,11 @@ a hand that accelerates into the throw (by ``a * span / 2``: 0.67 m/s at 20 m/s^
 60 Hz samples); the quadratic has no lag under constant acceleration, and over seven samples
 it still halves the two-frame noise (gain 0.68/dt against 1.41/dt).
 
-Samples with equal timestamps (a duplicated tracker sample) carry no rate information: only
-the newest of them is used. With fewer than three distinct times the fit is a line, with
-fewer than two the velocity is zero, never a division by zero.
+Samples with equal timestamps (a duplicated tracker sample), or closer than 0.5 ms, carry
+noise rather than rate: only the newest of them is used. With fewer than three distinct times
+the fit is a line, with fewer than two the velocity is zero, never a division by zero.
+Rotation vectors are unwrapped (summed frame-to-frame steps), so spins of any speed that turn
+less than half a turn per frame are measured right.
 """
 
 from __future__ import annotations
@@ -22,11 +24,16 @@ from .. import spatial as sp
 Sample = tuple[int, sp.Vec3, sp.Quat]  # time_ns, world CM, world rotation of the part
 
 
+# Samples closer than this to the next one carry noise, not rate: 0.5 ms, half the interval
+# of a 1 kHz tracker.
+MIN_INTERVAL_NS = 500_000
+
+
 def _distinct(history: tuple[Sample, ...]) -> list[Sample]:
-    """Newest sample of each time, oldest first."""
+    """Oldest first; of samples closer together than MIN_INTERVAL_NS, only the newest."""
     out: list[Sample] = []
     for sample in history:
-        if out and out[-1][0] == sample[0]:
+        if out and sample[0] - out[-1][0] < MIN_INTERVAL_NS:
             out[-1] = sample
         else:
             out.append(sample)
@@ -65,11 +72,16 @@ def estimate(history: tuple[Sample, ...], *, method: str, window: int) -> tuple[
     if len(samples) < 2:
         return sp.ZERO3, sp.ZERO3
     samples = samples[-2:] if method == "two_frame" else samples[-window:]
-    t_last, _, q_last = samples[-1]
-    inv_last = sp.quat_conj(q_last)
+    t_last = samples[-1][0]
     # Times in seconds before the newest sample; rotation vectors relative to the newest
     # orientation, in world axes: for a constant angular velocity w they are exactly t w.
     times = [(t - t_last) * 1e-9 for t, _, _ in samples]
     positions = [p for _, p, _ in samples]
-    rotvecs = [sp.quat_to_rotvec(sp.quat_mul(q, inv_last)) for _, _, q in samples]
+    # Unwrapped: summed frame-to-frame steps (each under half a turn), so a spin faster than
+    # half a turn per window is not folded back into [0, pi].
+    rotvecs = [sp.ZERO3]
+    for (_, _, older), (_, _, newer) in zip(reversed(samples[:-1]), reversed(samples[1:])):
+        step = sp.quat_to_rotvec(sp.quat_mul(older, sp.quat_conj(newer)))
+        rotvecs.append(sp.add(rotvecs[-1], step))
+    rotvecs.reverse()
     return _slope_at_zero(times, positions), _slope_at_zero(times, rotvecs)
