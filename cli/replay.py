@@ -10,7 +10,9 @@ from vade_replay.errors import ConfigError
 from vade_replay.recording import Recording, ensure_writable
 from vade_replay.replay import replay
 
-from ._common import EXIT_DIVERGED, EXIT_OK, Progress, print_json, run
+from vade_replay.errors import VadeError
+
+from ._common import EXIT_DIVERGED, EXIT_OK, EXIT_UNUSABLE, Progress, print_json, run
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -19,7 +21,9 @@ def _parser() -> argparse.ArgumentParser:
         description="Re-run the dynamics from a recording's tracker inputs alone and compare "
                     "every derived message. Exit 0: identical; 1: diverged (the first "
                     "divergent frame is printed); 2: the file is unusable.")
-    p.add_argument("recording", help="a .mcap written by vade-record")
+    p.add_argument("recordings", nargs="+", metavar="FILE.mcap",
+                   help="recordings written by vade-record; with several, each is checked in "
+                        "turn and the exit code is the worst")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     p.add_argument("-o", "--output", help="write the regenerated recording here")
     p.add_argument("--set", action="append", default=[], metavar="physics.NAME=VALUE",
@@ -47,7 +51,39 @@ def main(argv: list[str] | None = None) -> int:
     overrides = _overrides(args.set)
     if args.spawn and not args.rerun:
         raise ConfigError("--spawn opens the review: give --rerun OUT.rrd too", field="--spawn")
-    recording = Recording(args.recording)
+    if len(args.recordings) > 1:
+        if args.output or args.rerun:
+            raise ConfigError("-o and --rerun take one recording at a time",
+                              field="-o" if args.output else "--rerun")
+        return _many(args, overrides)
+    return _one(args, args.recordings[0], overrides)
+
+
+def _many(args, overrides: dict[str, str]) -> int:
+    """Check several recordings: one line (or JSON object) each; the worst exit code."""
+    worst, summaries = EXIT_OK, []
+    for path in args.recordings:
+        try:
+            recording = Recording(path)
+            summary = replay(recording, overrides=overrides)
+        except VadeError as exc:
+            print(f"error: {exc.describe()}", file=sys.stderr)
+            summaries.append({"recording": path, "error": exc.describe()})
+            worst = EXIT_UNUSABLE
+            continue
+        code = EXIT_OK if summary.match or overrides else EXIT_DIVERGED
+        worst = max(worst, code)
+        summaries.append({"recording": path, **summary.to_dict()})
+        if not args.json:
+            verdict = "match" if summary.match else f"DIVERGED {summary.first_divergence['text']}"
+            print(f"{path}: {verdict}")
+    if args.json:
+        print_json(summaries)
+    return worst
+
+
+def _one(args, path: str, overrides: dict[str, str]) -> int:
+    recording = Recording(path)
     if args.rerun:
         ensure_writable(args.rerun)
     progress = Progress("replaying", recording.frame_count)

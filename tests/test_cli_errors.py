@@ -222,3 +222,25 @@ def test_absurd_numbers_are_refused_not_simulated(tmp_path, mutate, needle):
 def test_set_refuses_nan():
     _assert_clean_error(run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"), "--set",
                                 "physics.contact_tolerance=NaN"), "physics.contact_tolerance")
+
+
+def test_many_recordings_at_once(tmp_path):
+    from mcap_edit import nudge_pose
+
+    good = [str(RECORDINGS / "drop_on_table.mcap"), str(RECORDINGS / "throw_and_catch.mcap")]
+    result = run_cli("vade-replay", *good)
+    assert result.returncode == 0
+    assert [line.split(": ")[1] for line in result.stdout.splitlines()] == ["match", "match"]
+    bad = tmp_path / "bad.mcap"
+    nudge_pose(RECORDINGS / "drop_on_table.mcap", bad, frame=7, axis=1, delta=1e-9)
+    missing = str(tmp_path / "missing.mcap")
+    result = run_cli("vade-replay", good[0], str(bad), "--json")
+    assert result.returncode == 1
+    summaries = json.loads(result.stdout)
+    assert [s["match"] for s in summaries] == [True, False]
+    assert summaries[1]["first_divergence"]["frame"] == 7
+    result = run_cli("vade-replay", str(bad), missing, good[1])
+    assert result.returncode == 2  # the worst: an unusable file
+    assert "missing.mcap" in result.stderr and "DIVERGED" in result.stdout
+    assert result.stdout.count(": match") == 1
+    _assert_clean_error(run_cli("vade-replay", *good, "-o", str(tmp_path / "x.mcap")), "-o")
