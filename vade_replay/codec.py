@@ -29,8 +29,6 @@ CHANNELS = {
 for _kind in sorted(ev.REGISTRY):
     CHANNELS[EVENT_TOPIC_PREFIX + _kind] = (f"vade.{_kind}", f"events/{_kind}.schema.json")
 
-DERIVED_TOPICS = tuple(t for t in CHANNELS if t != TRACKER_TOPIC)
-
 
 def dumps(value: dict) -> bytes:
     return json.dumps(value, sort_keys=True, separators=(",", ":"), allow_nan=False).encode()

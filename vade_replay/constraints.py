@@ -29,8 +29,6 @@ import numpy as np
 
 from . import spatial as sp
 
-KINDS = ("axis", "plane", "planes")
-LEAVE_WHEN = ("center_of_mass_off", "no_contact")
 DEFAULT_DISTANCE_TOLERANCE_M = 0.005
 DEFAULT_ANGLE_TOLERANCE_DEG = 10.0
 DEFAULT_FINAL_DISTANCE_M = 0.002

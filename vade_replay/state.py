@@ -1,10 +1,8 @@
-"""State: only what a step changes. Frozen, built of tuples and floats, compared explicitly."""
+"""State: only what a step changes. Frozen, built of tuples and plain floats."""
 
 from __future__ import annotations
 
-import hashlib
-import struct
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 from . import spatial as sp
 from .modes import Mode
@@ -78,36 +76,3 @@ class WorldState:
     parts: tuple[PartState, ...]     # sorted by name, same order as Scene.parts
     base_pose: sp.Pose | None
     grips: tuple[tuple[str, bool], ...]  # last grip per hand, sorted by hand
-
-
-def _walk(value, out: list) -> None:
-    """Flatten a state into a canonical byte stream for hashing."""
-    if isinstance(value, float):
-        out.append(struct.pack("<d", value))
-    elif isinstance(value, bool):
-        out.append(b"T" if value else b"F")
-    elif isinstance(value, int):
-        out.append(struct.pack("<q", value))
-    elif isinstance(value, str):
-        out.append(value.encode() + b"\0")
-    elif value is None:
-        out.append(b"N")
-    elif isinstance(value, (tuple, list)):
-        out.append(b"(")
-        for item in value:
-            _walk(item, out)
-        out.append(b")")
-    elif hasattr(value, "__dataclass_fields__"):
-        out.append(type(value).__name__.encode() + b"{")
-        for f in fields(value):
-            _walk(getattr(value, f.name), out)
-        out.append(b"}")
-    else:
-        raise TypeError(f"cannot hash {type(value)!r}")
-
-
-def digest(state: WorldState) -> str:
-    """A hash of every number in the state, bit for bit (Box2D-style replay check)."""
-    out: list[bytes] = []
-    _walk(state, out)
-    return hashlib.blake2b(b"".join(out), digest_size=16).hexdigest()

@@ -347,12 +347,6 @@ def turn(force: TurnForce, theta: float, omega: float, dt: float, steps: int,
             omega = (omega + half * alpha) * decay
     return theta, omega
 
-
-def pendulum_energy(force: TurnForce, inertia: float, theta: float, omega: float) -> float:
-    """``0.5 J w^2 + V(theta)`` per unit of J (still base): the undamped invariant."""
-    return 0.5 * omega * omega - (force.a0 * math.sin(theta) + force.b0 * math.cos(theta))
-
-
 def substeps(dt: float, max_step_s: float) -> int:
     return max(1, math.ceil(dt / max_step_s - 1e-9))
 
