@@ -55,6 +55,10 @@ def encode_tracker(frame: TrackerFrame) -> dict:
 
 
 def _vec(value, n: int, *, topic: str, field: str, frame: int | None) -> tuple:
+    # Fast path: what this encoder writes (floats); the sum is finite only if every term is.
+    if type(value) is list and len(value) == n and all(type(v) is float for v in value) \
+            and math.isfinite(sum(value)) and max(map(abs, value)) <= MAX_ABS_POSITION_M:
+        return tuple(value)
     if not (isinstance(value, list) and len(value) == n and
             all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
                 and abs(v) <= MAX_ABS_POSITION_M for v in value)):
