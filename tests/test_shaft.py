@@ -110,3 +110,44 @@ def test_turning_on_a_tilted_shaft_happens_about_the_shaft_while_it_slides():
         assert sp.norm(sp.cross(offset, axis_world)) < 1e-12
         previous = part.pose
     assert turned > 0.3
+
+
+def test_holding_torque_stops_a_swing_at_a_turning_point_and_holds_it():
+    """Static friction about the shaft: the gear swings as before until the first turning
+    point where gravity's torque is within the holding torque, stops there, and stays."""
+    import json
+
+    from conftest import RECORDINGS, make_session, run_records
+
+    doc = json.loads((RECORDINGS / "gear_pendulum.json").read_text())
+    body = make_session(doc).build_scene().parts[0]
+
+    def gravity_torque(record) -> float:
+        base = sp.Pose(record.base.position, record.base.rotation_xyzw)
+        part = sp.Pose(record.parts[0].position, record.parts[0].rotation_xyzw)
+        lever = sp.sub(part.apply(body.center_of_mass), base.apply((0.0, 0.0, 0.0)))
+        axis = sp.quat_rotate(base.rotation, (1.0, 0.0, 0.0))  # the shaft, base x
+        return abs(sp.dot(sp.cross(lever, (0.0, 0.0, -9.8 * body.mass_kg)), axis))
+
+    free_run = run_records(doc)
+    turning = [r.frame for a, r in zip(free_run, free_run[1:])
+               if r.parts[0].mode == "ONBASESLIDE" and a.parts[0].mode == "ONBASESLIDE"
+               and a.parts[0].angular_velocity[0] * r.parts[0].angular_velocity[0] <= 0]
+    assert len(turning) >= 3
+    # Just above gravity's torque at the third turning point: the first two swing on.
+    limit = 1.001 * gravity_torque(free_run[turning[2]])
+    assert gravity_torque(free_run[turning[1]]) > limit
+    doc["parts"][0]["assembly"]["constraints"][0]["friction"]["holding_torque"] = limit
+    held_run = run_records(doc)
+    stops = [r.frame for r in held_run for e in r.events
+             if e.kind == "ModeChanged" and e.cause == "held_by_friction"]
+    assert stops == [turning[2]]
+    stop = stops[0]
+    # Identical to the swing without static friction up to the stop.
+    assert [r.parts for r in held_run[:stop]] == [r.parts for r in free_run[:stop]]
+    # Held where gravity's torque is within the limit, and never moves again.
+    after = held_run[stop:]
+    assert all(r.parts[0].mode == "ONBASESTATIC" for r in after)
+    assert gravity_torque(after[0]) <= limit
+    torques = {round(gravity_torque(r), 12) for r in after}
+    assert len(torques) == 1

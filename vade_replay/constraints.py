@@ -58,6 +58,7 @@ class Mate:
     static_friction: float             # f_s
     dynamic_friction: float            # f_d
     rotational_friction: float         # f_r, N m s / rad: torque -f_r w
+    holding_torque: float              # N m: static friction about the shaft (0: none)
     leave_when: str                    # plane: "center_of_mass_off" or "no_contact"
     inertia_about_axis: float          # J = u.I_cm u + m |r_perp|^2 (kg m^2), axis only
     cm_offset_part: sp.Vec3            # r_perp in the part frame: CM minus its foot on the axis
@@ -132,7 +133,7 @@ def _orthonormal_pair(n: sp.Vec3) -> tuple[sp.Vec3, sp.Vec3]:
 def build_mate(*, name: str, kind: str, base_points, base_dirs, part_points, part_dirs,
                radius: float, distance_tolerance: float, angle_tolerance: float, slide: bool,
                turn: bool, static_friction: float, dynamic_friction: float,
-               rotational_friction: float, leave_when: str, part_vertices: np.ndarray, part_faces: np.ndarray,
+               rotational_friction: float, holding_torque: float, leave_when: str, part_vertices: np.ndarray, part_faces: np.ndarray,
                mass_kg: float, center_of_mass: sp.Vec3, inertia_cm: sp.Mat3,
                base_vertices: np.ndarray, base_faces: np.ndarray, geometry_tol: float) -> Mate:
     """A ``Mate`` with every invariant computed once: J, spans, feature face sets."""
@@ -189,7 +190,7 @@ def build_mate(*, name: str, kind: str, base_points, base_dirs, part_points, par
         distance_tolerance=distance_tolerance, angle_tolerance=angle_tolerance,
         slide_dirs=slide_dirs, turn=turn, static_friction=static_friction,
         dynamic_friction=dynamic_friction, rotational_friction=rotational_friction,
-        leave_when=leave_when,
+        holding_torque=holding_torque, leave_when=leave_when,
         inertia_about_axis=inertia, cm_offset_part=r_perp, sweep_radius=sweep,
         part_span=part_span, part_feature_span=part_feature_span,
         base_feature_span=base_feature_span, part_feature_faces=_frozen_index(part_feature),

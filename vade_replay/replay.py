@@ -158,7 +158,8 @@ def _divergence(inputs: TrackerFrame, recorded: list[tuple[str, bytes]],
 
 
 _FRICTION_KEYS = {"friction_static": "static", "friction_dynamic": "dynamic",
-                  "friction_rotational": "rotational"}
+                  "friction_rotational": "rotational",
+                  "friction_holding_torque": "holding_torque"}
 
 
 def apply_overrides(session: Session, overrides: dict[str, str]) -> tuple[Session, dict]:

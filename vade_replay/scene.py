@@ -52,6 +52,7 @@ class Physics:
     friction_static: float = 0.3
     friction_dynamic: float = 0.2
     friction_rotational: float = 0.0         # N m s / rad
+    friction_holding_torque: float = 0.0     # N m: static friction about a shaft
     slide_integrator: str = "analytic"       # midpoint: the older scheme; paper: eq. 4
     turn_integrator: str = "yoshida6"        # paper: eq. 11 once per frame
     onbase_max_step_s: float = 1.0 / 240.0   # sub-step bound for both
@@ -344,6 +345,8 @@ def _assembly(doc: dict, part: Body, base: Body, physics: Physics, f: float, *, 
                 dynamic_friction=float(friction.get("dynamic", physics.friction_dynamic)),
                 rotational_friction=float(friction.get("rotational",
                                                        physics.friction_rotational)),
+                holding_torque=float(friction.get("holding_torque",
+                                                  physics.friction_holding_torque)),
                 leave_when=mdoc.get("leave_when", "center_of_mass_off"),
                 part_vertices=np.asarray(part.vertices), part_faces=np.asarray(part.faces),
                 mass_kg=part.mass_kg, center_of_mass=part.center_of_mass,

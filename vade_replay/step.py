@@ -433,7 +433,9 @@ def _drive(f: _Frame, body: Body, mate: cn.Mate, m: OnBase) -> tuple[bool, bool,
         gt = onbase.project_blocked(onbase.tangential(mate.slide_dirs, g), m.blocked_slide)
         slides = onbase.starts_sliding(gt, n_load, mate.static_friction)
     alpha = _alpha_at_rest(body, mate, m, _to_base(f, physics.gravity_rotation))
-    turns = alpha != 0.0 and alpha * m.blocked_turn <= 0.0
+    # Static friction about the shaft holds it while gravity's torque is within the limit.
+    turns = abs(alpha) * mate.inertia_about_axis > mate.holding_torque \
+        and alpha * m.blocked_turn <= 0.0
     return lifted, slides, turns
 
 
@@ -606,9 +608,21 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
             path = onbase.GravityPath(physics.gravity_rotation, q0, q1)
             force = onbase.TurnForce(path, mate.base_dirs[0], m.cm_offset, body.mass_kg,
                                      mate.inertia_about_axis, mate.rotational_friction)
-            if not (m.blocked_turn and m.angle_rate == 0.0):
+            held = m.angle_rate == 0.0 and (m.blocked_turn or mate.holding_torque > 0.0 and abs(
+                _alpha_at_rest(body, mate, m, _to_base(f, physics.gravity_rotation)))
+                * mate.inertia_about_axis <= mate.holding_torque)
+            if not held:
                 a1, w1 = onbase.turn(force, m.angle, m.angle_rate, dt, steps,
                                      physics.turn_integrator)
+                if mate.holding_torque > 0.0 and m.angle_rate * w1 <= 0.0 and w1 != 0.0 \
+                        and m.angle_rate != 0.0:
+                    # It came to a stop in this frame: static friction holds it there if
+                    # gravity's torque is within the limit (a turning point of the swing).
+                    at_stop = replace(m, angle=a1)
+                    torque = abs(_alpha_at_rest(body, mate, at_stop, _to_base(
+                        f, physics.gravity_rotation))) * mate.inertia_about_axis
+                    if torque <= mate.holding_torque:
+                        w1 = 0.0
     if not all(math.isfinite(c) for c in (*x1, *v1, a1, w1)):
         f.change_mode(index, replace(part, mode=Mode.ONBASESTATIC, linear_velocity=sp.ZERO3,
                                      angular_velocity=sp.ZERO3,
