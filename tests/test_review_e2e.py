@@ -62,3 +62,14 @@ def test_what_if_review_shows_both_runs_and_their_difference(tmp_path):
     # Identical until the release, then the full-gravity drop pulls away.
     assert all(v == [0.0] or v == 0.0 for f, v in diff if f <= 84)
     assert max((v[0] if isinstance(v, list) else v) for _, v in diff) > 0.01
+
+
+def test_session_colours_reach_the_review(tmp_path):
+    # drop_on_table.json colours the peg (70, 130, 220) and the table (150, 110, 70).
+    rrd = tmp_path / "c.rrd"
+    assert run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"), "--rerun",
+                   str(rrd)).returncode == 0
+    store = read_rrd(rrd)
+    peg = rows(store, "/world/recorded/parts/peg", "Mesh3D:albedo_factor", static=True)
+    table = rows(store, "/world/environment/table", "Mesh3D:albedo_factor", static=True)
+    assert peg == [(None, 0x4682DCFF)] and table == [(None, 0x966E46FF)]

@@ -18,7 +18,7 @@ from .view import MeshInfo, SceneInfo, write_review
 
 def _mesh(body: Body) -> MeshInfo:
     return MeshInfo(body.name, body.vertices, body.faces, body.mass_kg, body.center_of_mass,
-                    body.inertia_cm)
+                    body.inertia_cm, body.color)
 
 
 def scene_info(scene: Scene) -> SceneInfo:

@@ -69,6 +69,7 @@ class MeshInfo:
     mass_kg: float = 0.0
     center_of_mass: tuple = (0.0, 0.0, 0.0)  # in the object's frame
     inertia_cm: tuple = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))  # at CM, object's axes
+    color: tuple | None = None  # (r, g, b) or (r, g, b, a), 0-255, from the session
 
 
 @dataclass(frozen=True)
@@ -267,7 +268,8 @@ class _RunLogger:
         self.meshes = {mesh.name: mesh for mesh in scene.parts}
         self.base_mesh = scene.base
         self.gravity = tuple(float(g) for g in scene.gravity)
-        self.colors = {mesh.name: _PART_COLORS[i % len(_PART_COLORS)] for i, mesh in enumerate(scene.parts)}
+        self.colors = {mesh.name: _rgba(mesh.color) if mesh.color else _PART_COLORS[i % len(_PART_COLORS)]
+                       for i, mesh in enumerate(scene.parts)}
         self.mode_by_part: dict[str, str] = {}
         self.transitions: dict[tuple[str, str], int] = {}
         self.trajectory_index: dict[str, int] = {}
@@ -315,7 +317,8 @@ class _RunLogger:
             # Ghost meshes appear at the frame they start; the main run's never change.
             self.rec.log(path, _mesh3d_from_info(mesh, color=color), static=not self.ghost)
         if self.base_mesh is not None:
-            color = 0x9C8A70FF if not self.ghost else 0x9C8A7060
+            base_rgba = _rgba(self.base_mesh.color) if self.base_mesh.color else 0x9C8A70FF
+            color = base_rgba if not self.ghost else (base_rgba & 0xFFFFFF00) | 0x60
             self.rec.log(f"{world}/base", _mesh3d_from_info(self.base_mesh, color=color), static=not self.ghost)
 
     def _log_pose(self, path: str, position: tuple, rotation_xyzw: tuple) -> None:
@@ -511,7 +514,8 @@ def _log_world_static(rec: rr.RecordingStream, *, scene: SceneInfo) -> None:
     rec.log("world", _view_coordinates_from_gravity(scene.gravity), static=True)
     for mesh, position, rotation_xyzw in scene.environment:
         path = f"world/environment/{rr.escape_entity_path_part(mesh.name)}"
-        rec.log(path, _mesh3d_from_info(mesh, color=0xB0B0B8FF), static=True)
+        rec.log(path, _mesh3d_from_info(mesh, color=_rgba(mesh.color) if mesh.color else 0xB0B0B8FF),
+                static=True)
         rec.log(path, rr.Transform3D(translation=position, quaternion=rr.Quaternion(xyzw=rotation_xyzw)), static=True)
 
 
@@ -528,6 +532,13 @@ def _view_coordinates_from_gravity(gravity: tuple) -> rr.ViewCoordinates:
         (2, False): rr.ViewCoordinates.RIGHT_HAND_Z_DOWN,
     }
     return table[(axis, up_is_positive)]
+
+
+def _rgba(color: tuple) -> int:
+    """A session's (r, g, b[, a]) colour as rerun's 0xRRGGBBAA."""
+    r, g, b = (int(c) & 0xFF for c in color[:3])
+    a = int(color[3]) & 0xFF if len(color) > 3 else 0xFF
+    return (r << 24) | (g << 16) | (b << 8) | a
 
 
 def _mesh3d_from_info(mesh: MeshInfo, *, color: int) -> rr.Mesh3D:
