@@ -74,9 +74,13 @@ def _many(args, overrides: dict[str, str]) -> int:
         code = EXIT_OK if summary.match or overrides else EXIT_DIVERGED
         worst = max(worst, code)
         summaries.append({"recording": path, **summary.to_dict()})
+        if summary.truncated:
+            print(f"warning: {path}: the recording was cut short (no end records); replayed "
+                  f"the {summary.frames} complete frames it holds", file=sys.stderr)
         if not args.json:
             verdict = "match" if summary.match else f"DIVERGED {summary.first_divergence['text']}"
-            print(f"{path}: {verdict}")
+            cut = " (cut short)" if summary.truncated else ""
+            print(f"{path}: {verdict}{cut}")
     if args.json:
         print_json(summaries)
     return worst

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 
+import pytest
+
 from conftest import RECORDINGS, run_records, session_doc, table
 from vade_replay import spatial as sp
 
@@ -97,3 +99,26 @@ def test_a_part_put_down_on_the_base_rides_with_it():
     moved = sp.sub(end.parts[0].position, start.parts[0].position)
     base_moved = sp.sub(end.base.position, start.base.position)
     assert sp.norm(sp.sub(moved, base_moved)) < 1e-12 and base_moved[0] > 0.49
+
+
+@pytest.mark.parametrize("where, position", [
+    ("beside the plate", [-0.17505, 0.2, 0.95]),   # 0.05 mm from its side face
+    ("under the plate", [0.0, 0.2, 0.91995]),      # 0.05 mm below it
+])
+def test_a_face_that_cannot_hold_the_part_does_not(where, position):
+    # Let go touching the base where gravity does not press it onto the face: it falls.
+    doc = _plane_block_wall(**{"tracker/devices/right_hand/2/position": position})
+    del doc["parts"][0]["assembly"]
+    transitions = _transitions(run_records(doc))
+    assert ("INHAND", "INSPACE", "released") in transitions, where
+    assert not any(to == "ONBASESTATIC" for _, to, _ in transitions), where
+    assert transitions[-1] == ("INSPACE", "STATIC", "hit_environment"), where
+
+
+def test_a_part_resting_on_a_tilted_base_stays_until_the_face_turns_over():
+    # Landed on the top face; the base tilts to 70 degrees: the face still holds it up.
+    doc = _plane_block_wall(**{"tracker/devices/right_hand/2/position/2": 1.032})
+    doc["tracker"]["devices"]["left_hand"].append({"t": 3.9, "euler_deg": [-70, 0, 0]})
+    transitions = _transitions(run_records(doc))
+    assert ("INSPACE", "ONBASESTATIC", "landed_on_base") in transitions
+    assert transitions[-1] == ("INSPACE", "ONBASESTATIC", "landed_on_base")

@@ -72,9 +72,9 @@ def decode_tracker(data: bytes) -> TrackerFrame:
     """A recorded tracker frame; a malformed one raises ``RecordingError`` naming the field."""
     value = loads(data, topic=TRACKER_TOPIC)
     frame = value.get("frame")
-    if not isinstance(frame, int) or not isinstance(value.get("time_ns"), int):
+    if type(frame) is not int or type(value.get("time_ns")) is not int:
         raise RecordingError("tracker message lacks integer frame/time_ns",
-                             field=TRACKER_TOPIC, frame=frame if isinstance(frame, int) else None)
+                             field=TRACKER_TOPIC, frame=frame if type(frame) is int else None)
     devices = value.get("devices")
     if not isinstance(devices, dict):
         raise RecordingError("tracker message lacks devices", field=TRACKER_TOPIC, frame=frame)

@@ -178,6 +178,22 @@ class CollisionWorld:
         return _distance(fcl.CollisionObject(self._part_models[part], _transform(base_from_part)),
                          self._base_whole)
 
+    def base_contact_normal(self, part: str, base_from_part: sp.Pose) -> sp.Vec3 | None:
+        """Unit direction from the base's nearest point to the part's (base axes): the
+        normal of the face the part touches; None when they overlap (no nearest points)."""
+        if self._base_whole is None:
+            return None
+        self.stats["fcl_distance_queries"] += 1
+        result = fcl.DistanceResult()
+        d = fcl.distance(fcl.CollisionObject(self._part_models[part], _transform(base_from_part)),
+                         self._base_whole, fcl.DistanceRequest(enable_nearest_points=True),
+                         result)
+        if not d > 0.0:
+            return None
+        on_part, on_base = result.nearest_points
+        gap = sp.sub(tuple(float(x) for x in on_part), tuple(float(x) for x in on_base))
+        return sp.normalize(gap) if sp.norm(gap) > 0.0 else None
+
     def environment_near(self, center: sp.Vec3, radius: float) -> tuple[int, ...]:
         """Indices of environment objects whose world box a sphere can touch."""
         self.stats["bounding_tests"] += 1

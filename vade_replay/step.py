@@ -24,6 +24,7 @@ from .state import Held, OnBase, PartState, Resting, WorldState
 RIGHT, LEFT = "right_hand", "left_hand"
 _GRABBABLE = (Mode.STATIC, Mode.INSPACE, Mode.ONBASESLIDE, Mode.ONBASESTATIC, Mode.PLACED)
 _CA_MAX_ITERATIONS = 10_000
+_MIN_SUPPORT_COS = 0.1
 
 
 @dataclass
@@ -203,9 +204,22 @@ def _release(f: _Frame, index: int, hand: str) -> None:
     if f.base_pose is not None and _base_path(f, cm, body.radius_about_cm) is not None:
         base_from_part = f.base_pose.inverse().compose(part.pose)
         if f.collision.distance_to_base(part.name, base_from_part) <= physics.contact_tolerance:
-            f.events.append(PartReleased(frame, part.name, Cause.RELEASED_ON_BASE_PART.value,
-                                         hand, v, w))
-            _rest_on_base(f, index, base_from_part, Cause.RELEASED_ON_BASE_PART)
+            up = _support_normal(f, part.name, base_from_part)
+            if up is not None:
+                f.events.append(PartReleased(frame, part.name,
+                                             Cause.RELEASED_ON_BASE_PART.value, hand, v, w))
+                _rest_on_base(f, index, base_from_part, up, Cause.RELEASED_ON_BASE_PART)
+                return
+            # Touching a face that does not hold it up (underneath, a wall): it flies, not
+            # into the base, which it may graze until they separate.
+            v = _without_push_into_base(f, part.name, base_from_part, v)
+            f.events.append(PartReleased(frame, part.name, Cause.RELEASED.value, hand, v, w))
+            flight = free.start(t_ns=f.t_ns, cm=cm, velocity=v, omega_world=w,
+                                world_from_part=part.pose,
+                                part_from_principal=body.part_from_principal,
+                                principal_moments=body.principal_moments, base_clear=False)
+            f.change_mode(index, PartState(part.name, Mode.INSPACE, part.pose, v, w, flight),
+                          Cause.RELEASED)
             return
     near = f.collision.environment_near(cm, body.radius_about_cm + physics.contact_tolerance)
     if near:
@@ -281,18 +295,57 @@ def _fly(f: _Frame, index: int) -> None:
         f.events.append(ContactMade(f.inputs.frame, part.name, Cause.HIT_BASE.value,
                                     f.scene.base.name, t_c))  # type: ignore[union-attr]
         base_at_contact = base.at((t_c - t_a) / (t_b - t_a))  # type: ignore[union-attr]
-        _rest_on_base(f, index, base_at_contact.inverse().compose(pose_c), Cause.LANDED_ON_BASE)
+        base_from_part = base_at_contact.inverse().compose(pose_c)
+        up = _support_normal(f, part.name, base_from_part)
+        if up is not None:
+            _rest_on_base(f, index, base_from_part, up, Cause.LANDED_ON_BASE)
+            return
+        # It hit a face that cannot hold it (the underside, a wall): it loses its speed into
+        # the base and flies on from the contact, grazing the base until they separate.
+        contact_flight, cm_c, v_c, _ = _flight_pose(f, body, start, t_c)
+        v_c = _without_push_into_base(f, part.name, base_from_part, v_c)
+        w_c = free.omega_world(contact_flight, model=physics.free_rotation,
+                               moments=body.principal_moments)
+        flight = free.start(t_ns=t_c, cm=cm_c, velocity=v_c, omega_world=w_c,
+                            world_from_part=pose_c, part_from_principal=body.part_from_principal,
+                            principal_moments=body.principal_moments, base_clear=False)
+        f.parts[index] = PartState(part.name, Mode.INSPACE, pose_c, v_c, w_c, flight)
         return
     f.events.append(ContactMade(f.inputs.frame, part.name, Cause.HIT_ENVIRONMENT.value,
                                 f.collision.environment_name(other), t_c))
     f.change_mode(index, PartState(part.name, Mode.STATIC, pose_c), Cause.HIT_ENVIRONMENT)
 
 
-def _rest_on_base(f: _Frame, index: int, base_from_part: sp.Pose, cause: Cause) -> None:
-    """Lie on the base on no constraint: ride with it until it turns gravity away."""
-    part = f.parts[index]
+def _support_normal(f: _Frame, part: str, base_from_part: sp.Pose) -> sp.Vec3 | None:
+    """The normal (base axes) of the base face a touching part lies on, if gravity presses
+    the part onto it; None for a face that cannot hold it up (underneath, a vertical wall)."""
     g = _to_base(f, f.scene.physics.gravity)
-    up = sp.scale(sp.normalize(g), -1.0) if sp.norm(g) > 0.0 else (0.0, 0.0, 1.0)
+    if sp.norm(g) == 0.0:
+        return None  # nothing presses it onto anything
+    up = sp.scale(sp.normalize(g), -1.0)
+    normal = f.collision.base_contact_normal(part, base_from_part)
+    if normal is None:  # overlapping: no face to tell; take the one gravity presses on
+        return up
+    # A face steeper than this (84 degrees) is a wall: it does not hold the part up.
+    return normal if sp.dot(up, normal) > _MIN_SUPPORT_COS else None
+
+
+def _without_push_into_base(f: _Frame, part: str, base_from_part: sp.Pose,
+                            v: sp.Vec3) -> sp.Vec3:
+    """The velocity less its component into the base face the part touches."""
+    normal = f.collision.base_contact_normal(part, base_from_part)
+    if normal is None:
+        return v
+    n = sp.quat_rotate(f.base_pose.rotation, normal)  # type: ignore[union-attr]
+    into = sp.dot(v, n)
+    return sp.sub(v, sp.scale(n, into)) if into < 0.0 else v
+
+
+def _rest_on_base(f: _Frame, index: int, base_from_part: sp.Pose, up: sp.Vec3,
+                  cause: Cause) -> None:
+    """Lie on the base on no constraint, on the face with normal ``up`` (base axes): ride
+    with it until the base turns so that gravity pulls the part off that face."""
+    part = f.parts[index]
     pose = f.base_pose.compose(base_from_part)  # type: ignore[union-attr]
     f.change_mode(index, PartState(part.name, Mode.ONBASESTATIC, pose, sp.ZERO3, sp.ZERO3,
                                    Resting(base_from_part, up)), cause)
@@ -532,7 +585,7 @@ def _check_resting_on_base(f: _Frame) -> None:
         if isinstance(part.motion, Resting):
             # No constraint: it stays while gravity presses it onto the base.
             rest = part.motion
-            if sp.dot(_to_base(f, f.scene.physics.gravity), rest.up) >= 0.0:
+            if sp.dot(_to_base(f, f.scene.physics.gravity), rest.up) > 0.0:
                 _leave(f, index, Cause.LIFTED_OFF, rest.base_from_part, sp.ZERO3, sp.ZERO3)
             continue
         m: OnBase = part.motion  # type: ignore[assignment]

@@ -310,15 +310,17 @@ class _RunLogger:
 
     def _log_meshes(self) -> None:
         world = f"world/{self.label}"
-        alpha = 0x60 if self.ghost else 0xFF
+        alpha = 0x60  # ghosts are see-through, never more opaque than the part itself
         for mesh in self.meshes.values():
-            color = (self.colors[mesh.name] & 0xFFFFFF00) | alpha
+            own = self.colors[mesh.name]
+            color = own if not self.ghost else (own & 0xFFFFFF00) | min(own & 0xFF, alpha)
             path = f"{world}/parts/{rr.escape_entity_path_part(mesh.name)}"
             # Ghost meshes appear at the frame they start; the main run's never change.
             self.rec.log(path, _mesh3d_from_info(mesh, color=color), static=not self.ghost)
         if self.base_mesh is not None:
             base_rgba = _rgba(self.base_mesh.color) if self.base_mesh.color else 0x9C8A70FF
-            color = base_rgba if not self.ghost else (base_rgba & 0xFFFFFF00) | 0x60
+            color = base_rgba if not self.ghost else \
+                (base_rgba & 0xFFFFFF00) | min(base_rgba & 0xFF, 0x60)
             self.rec.log(f"{world}/base", _mesh3d_from_info(self.base_mesh, color=color), static=not self.ghost)
 
     def _log_pose(self, path: str, position: tuple, rotation_xyzw: tuple) -> None:
