@@ -204,7 +204,8 @@ def _release(f: _Frame, index: int, hand: str) -> None:
     if f.base_pose is not None and _base_path(f, cm, body.radius_about_cm) is not None:
         base_from_part = f.base_pose.inverse().compose(part.pose)
         if f.collision.distance_to_base(part.name, base_from_part) <= physics.contact_tolerance:
-            up = _support_normal(f, part.name, base_from_part)
+            normal = f.collision.base_contact_normal(part.name, base_from_part)
+            up = _support(f, normal)
             if up is not None:
                 f.events.append(PartReleased(frame, part.name,
                                              Cause.RELEASED_ON_BASE_PART.value, hand, v, w))
@@ -212,7 +213,7 @@ def _release(f: _Frame, index: int, hand: str) -> None:
                 return
             # Touching a face that does not hold it up (underneath, a wall): it flies, not
             # into the base, which it may graze until they separate.
-            v = _without_push_into_base(f, part.name, base_from_part, v)
+            v = _without_push_into_base(f, normal, v)
             f.events.append(PartReleased(frame, part.name, Cause.RELEASED.value, hand, v, w))
             flight = free.start(t_ns=f.t_ns, cm=cm, velocity=v, omega_world=w,
                                 world_from_part=part.pose,
@@ -296,14 +297,15 @@ def _fly(f: _Frame, index: int) -> None:
                                     f.scene.base.name, t_c))  # type: ignore[union-attr]
         base_at_contact = base.at((t_c - t_a) / (t_b - t_a))  # type: ignore[union-attr]
         base_from_part = base_at_contact.inverse().compose(pose_c)
-        up = _support_normal(f, part.name, base_from_part)
+        normal = f.collision.base_contact_normal(part.name, base_from_part)
+        up = _support(f, normal)
         if up is not None:
             _rest_on_base(f, index, base_from_part, up, Cause.LANDED_ON_BASE)
             return
         # It hit a face that cannot hold it (the underside, a wall): it loses its speed into
         # the base and flies on from the contact, grazing the base until they separate.
         contact_flight, cm_c, v_c, _ = _flight_pose(f, body, start, t_c)
-        v_c = _without_push_into_base(f, part.name, base_from_part, v_c)
+        v_c = _without_push_into_base(f, normal, v_c)
         w_c = free.omega_world(contact_flight, model=physics.free_rotation,
                                moments=body.principal_moments)
         flight = free.start(t_ns=t_c, cm=cm_c, velocity=v_c, omega_world=w_c,
@@ -316,24 +318,21 @@ def _fly(f: _Frame, index: int) -> None:
     f.change_mode(index, PartState(part.name, Mode.STATIC, pose_c), Cause.HIT_ENVIRONMENT)
 
 
-def _support_normal(f: _Frame, part: str, base_from_part: sp.Pose) -> sp.Vec3 | None:
-    """The normal (base axes) of the base face a touching part lies on, if gravity presses
-    the part onto it; None for a face that cannot hold it up (underneath, a vertical wall)."""
+def _support(f: _Frame, normal: sp.Vec3 | None) -> sp.Vec3 | None:
+    """The normal (base axes) of the touched base face if gravity presses the part onto it;
+    None for a face that cannot hold it up (underneath, a vertical wall)."""
     g = _to_base(f, f.scene.physics.gravity)
     if sp.norm(g) == 0.0:
         return None  # nothing presses it onto anything
     up = sp.scale(sp.normalize(g), -1.0)
-    normal = f.collision.base_contact_normal(part, base_from_part)
     if normal is None:  # overlapping: no face to tell; take the one gravity presses on
         return up
     # A face steeper than this (84 degrees) is a wall: it does not hold the part up.
     return normal if sp.dot(up, normal) > _MIN_SUPPORT_COS else None
 
 
-def _without_push_into_base(f: _Frame, part: str, base_from_part: sp.Pose,
-                            v: sp.Vec3) -> sp.Vec3:
-    """The velocity less its component into the base face the part touches."""
-    normal = f.collision.base_contact_normal(part, base_from_part)
+def _without_push_into_base(f: _Frame, normal: sp.Vec3 | None, v: sp.Vec3) -> sp.Vec3:
+    """The velocity less its component into the touched base face (normal in base axes)."""
     if normal is None:
         return v
     n = sp.quat_rotate(f.base_pose.rotation, normal)  # type: ignore[union-attr]
