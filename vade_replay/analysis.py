@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from .frames import FrameRecord
+from .frames import FrameRecord, changed_indices
 
 
 @dataclass
@@ -36,6 +36,7 @@ class SessionAnalysis:
     _first_ns: int | None = None
     _last_ns: int | None = None
     _mode: dict[str, tuple[str, int]] = field(default_factory=dict)  # part -> (mode, since)
+    _last_parts: tuple | None = None  # the last frame's snapshots: unchanged ones are skipped
 
     def add(self, record: FrameRecord) -> None:
         t = record.time_ns
@@ -44,12 +45,15 @@ class SessionAnalysis:
             for part in record.parts:
                 self.parts[part.name] = PartStats()
         self._last_ns = t
-        for part in record.parts:
+        parts = record.parts
+        for index in changed_indices(parts, self._last_parts):
+            part = parts[index]
             mode, since = self._mode.get(part.name, (part.mode, t))
             if mode != part.mode:
                 self._close(part.name, mode, since, t)
                 since = t
             self._mode[part.name] = (part.mode, since)
+        self._last_parts = parts
         for event in record.events:
             self._event(event, t)
 

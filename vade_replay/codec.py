@@ -13,7 +13,8 @@ import math
 
 from . import events as ev
 from .errors import RecordingError
-from .frames import MAX_ABS_POSITION_M, DeviceSample, FrameRecord, PartSnapshot, TrackerFrame
+from .frames import (MAX_ABS_POSITION_M, DeviceSample, FrameRecord, PartSnapshot,
+                     TrackerFrame, changed_indices)
 
 TRACKER_TOPIC = "/tracker"
 PARTS_TOPIC = "/parts"
@@ -68,6 +69,9 @@ def _vec(value, n: int, *, topic: str, field: str, frame: int | None) -> tuple:
     return tuple(float(v) for v in value)
 
 
+_FLOAT_ONLY = {float}
+
+
 def decode_tracker(data: bytes) -> TrackerFrame:
     """A recorded tracker frame; a malformed one raises ``RecordingError`` naming the field."""
     value = loads(data, topic=TRACKER_TOPIC)
@@ -81,6 +85,16 @@ def decode_tracker(data: bytes) -> TrackerFrame:
     samples = []
     for name in sorted(devices):
         d = devices[name]
+        # Fast path: what this encoder writes (3 + 4 finite floats, a bool or null grip).
+        if type(d) is dict:
+            pos, rot, grip = d.get("position"), d.get("xyzw"), d.get("grip")
+            if type(pos) is list and type(rot) is list and len(pos) == 3 and len(rot) == 4 \
+                    and (grip is None or grip is True or grip is False):
+                values = pos + rot
+                if set(map(type, values)) == _FLOAT_ONLY and math.isfinite(sum(values)) \
+                        and max(map(abs, values)) <= MAX_ABS_POSITION_M:
+                    samples.append((name, DeviceSample(tuple(pos), tuple(rot), grip)))
+                    continue
         if not isinstance(d, dict):
             raise RecordingError(f"device {name} is not an object", field=TRACKER_TOPIC,
                                  frame=frame)
@@ -126,6 +140,91 @@ def derived_messages(record: FrameRecord) -> list[tuple[str, bytes]]:
     for event in record.events:
         out.append((EVENT_TOPIC_PREFIX + event.kind, dumps(ev.to_dict(event))))
     return out
+
+
+_FLOAT_REPR = float.__repr__
+
+
+class FrameEncoder:
+    """``derived_messages`` with the text of an unchanged part reused from the last frame.
+
+    The bytes are exactly ``derived_messages``' (``tests/test_codec.py`` checks it): keys in
+    sorted order, the same separators, floats written by ``float.__repr__`` as ``json``
+    does. A part whose snapshot is the same object as last frame's (a resting part; see
+    ``step.frame_record``) costs nothing but its share of two joins done in C; anything the
+    fast path does not cover (a non-finite or non-float number) goes through ``json`` and
+    its errors.
+    """
+
+    def __init__(self) -> None:
+        self._names: dict[str, str] = {}
+        self._items: list = []       # the last frame's snapshots: base (if any) first
+        self._texts: list[str] = []  # each item's /parts object
+        self._heads: list[str] = []  # each item's transform up to its timestamp
+        self._tails: list[str] = []  # and after it
+        self._glue: list[str] = []   # heads[0], tails[0] + "," + heads[1], ..., tails[-1]
+
+    def _quoted(self, text: str) -> str:
+        quoted = self._names.get(text)
+        if quoted is None:
+            quoted = self._names[text] = json.dumps(text)
+        return quoted
+
+    def _fragments(self, s: PartSnapshot) -> tuple[str, str, str] | None:
+        name, mode = self._quoted(s.name), self._quoted(s.mode)
+        # float.__repr__ refuses anything but a float (json writes ints otherwise), and
+        # writes 'inf' or 'nan' for what json refuses: both go to the json fallback.
+        try:
+            r = list(map(_FLOAT_REPR, (*s.angular_velocity, *s.linear_velocity, *s.position,
+                                       *s.rotation_xyzw)))
+        except TypeError:
+            return None
+        if len(r) != 13 or not (len(s.angular_velocity) == len(s.linear_velocity)
+                                == len(s.position) == 3) or "n" in "".join(r):
+            return None
+        part = (f'{{"angular_velocity":[{r[0]},{r[1]},{r[2]}],"linear_velocity":[{r[3]},{r[4]},'
+                f'{r[5]}],"mode":{mode},"name":{name},"position":[{r[6]},{r[7]},{r[8]}],'
+                f'"xyzw":[{r[9]},{r[10]},{r[11]},{r[12]}]}}')
+        head = (f'{{"child_frame_id":{name},"parent_frame_id":"world","rotation":'
+                f'{{"w":{r[12]},"x":{r[9]},"y":{r[10]},"z":{r[11]}}},"timestamp":')
+        tail = f',"translation":{{"x":{r[6]},"y":{r[7]},"z":{r[8]}}}}}'
+        return part, head, tail
+
+    def derived_messages(self, record: FrameRecord) -> list[tuple[str, bytes]]:
+        """The same list, the same bytes, as ``derived_messages(record)``."""
+        frame, t = record.frame, record.time_ns
+        items = record.parts if record.base is None else (record.base, *record.parts)
+        n = len(items)
+        if type(frame) is not int or type(t) is not int or n == 0:
+            self._items = []
+            return derived_messages(record)
+        if len(self._items) != n:
+            self._items = [None] * n
+            self._texts, self._heads, self._tails = [""] * n, [""] * n, [""] * n
+            self._glue = [""] * (n + 1)
+        texts, heads, tails, glue = self._texts, self._heads, self._tails, self._glue
+        for i in changed_indices(items, self._items):
+            fragments = self._fragments(items[i])
+            if fragments is None:
+                self._items = []
+                return derived_messages(record)
+            texts[i], heads[i], tails[i] = fragments
+            glue[i] = heads[i] if i == 0 else tails[i - 1] + "," + heads[i]
+            glue[i + 1] = tails[i] if i == n - 1 else tails[i] + "," + heads[i + 1]
+        self._items = list(items)
+        sec, nsec = divmod(t, 10**9)
+        stamp = f'{{"nsec":{nsec},"sec":{sec}}}'
+        if record.base is None:
+            head = '{"base":null,"frame":'
+            parts_text = ",".join(texts)
+        else:
+            head = '{"base":' + texts[0] + ',"frame":'
+            parts_text = ",".join(texts[1:])
+        out = [(PARTS_TOPIC, f'{head}{frame},"parts":[{parts_text}],"time_ns":{t}}}'.encode()),
+               (FOXGLOVE_TOPIC, ('{"transforms":[' + stamp.join(glue) + "]}").encode())]
+        for event in record.events:
+            out.append((EVENT_TOPIC_PREFIX + event.kind, dumps(ev.to_dict(event))))
+        return out
 
 
 def decode_parts(data: bytes, *, frame: int | None = None) -> tuple[PartSnapshot | None,

@@ -112,7 +112,10 @@ class CollisionWorld:
                     self._mates[(body.name, index)] = self._mate_geometry(body, base, mate,
                                                                          whole, identity)
         self._probe = fcl.Sphere(1e-9)
-        self.stats = {"bounding_tests": 0, "fcl_distance_queries": 0}
+        # The run's counters (instrumentation: they never change a result). The step adds
+        # its integrator sub-steps and closed-form evaluations here too.
+        self.stats = {"bounding_tests": 0, "fcl_distance_queries": 0, "integrator_steps": 0,
+                      "closed_form_evals": 0}
 
     @staticmethod
     def _mate_geometry(body: Body, base: Body, mate: Mate, whole, identity) -> _MateGeometry:

@@ -8,6 +8,8 @@ consumer (replay check, rerun review, analysis). They hold plain Python values
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from itertools import compress
+from operator import is_not
 
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]  # x, y, z, w
@@ -68,3 +70,12 @@ class FrameRecord:
     @property
     def time_ns(self) -> int:
         return self.inputs.time_ns
+
+
+def changed_indices(new: tuple, old: tuple | None) -> list[int]:
+    """Indices at which ``new`` holds another object than ``old`` (all, if the lengths
+    differ). Snapshots of parts nothing moved are the same objects frame after frame
+    (``step.frame_record``), so consumers look only at these; the scan runs in C."""
+    if old is None or len(old) != len(new):
+        return list(range(len(new)))
+    return list(compress(range(len(new)), map(is_not, new, old)))

@@ -93,6 +93,7 @@ class RecordingWriter:
         self._writer.add_metadata("physics", {k: json.dumps(v) for k, v in
                                               asdict(scene.physics).items()})
         self._writer.add_metadata("session", {"name": session.name, **(extra_metadata or {})})
+        self._encoder = codec.FrameEncoder()
         self._sequence = 0
         self._last_flush_ns: int | None = None
         self.frames = 0
@@ -107,7 +108,9 @@ class RecordingWriter:
         """Write a frame's tracker input and its derived messages."""
         t = record.time_ns
         self._add(codec.TRACKER_TOPIC, t, codec.dumps(codec.encode_tracker(record.inputs)))
-        for topic, data in derived if derived is not None else codec.derived_messages(record):
+        if derived is None:
+            derived = self._encoder.derived_messages(record)
+        for topic, data in derived:
             self._add(topic, t, data)
         self.frames += 1
         if self._last_flush_ns is None:

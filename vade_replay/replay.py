@@ -32,11 +32,14 @@ def simulate(scene: Scene, frames: Iterable[TrackerFrame], *,
     """Fold ``step`` over tracker frames, yielding what each frame derived."""
     collision = collision or CollisionWorld(scene)
     state = None
+    previous = None
     for inputs in frames:
         if state is None:
             state = initial_state(scene, time_ns=inputs.time_ns)
         state, events = step(scene, collision, state, inputs)
-        yield frame_record(scene, state, inputs, events)
+        record = frame_record(scene, state, inputs, events, previous=previous)
+        previous = (state, record)
+        yield record
 
 
 @dataclass
@@ -274,9 +277,10 @@ def replay_frames(recording: Recording, scene: Scene, *, check: bool = True,
             cache.append(recorded)
             yield recorded.inputs
 
+    encoder = codec.FrameEncoder()
     for replayed in simulate(scene, inputs(), collision=collision):
         recorded = cache.pop()
-        derived = codec.derived_messages(replayed)
+        derived = encoder.derived_messages(replayed)
         divergence = _divergence(recorded.inputs, recorded.derived, derived) if check else None
         yield ReplayFrame(recorded, replayed, derived, divergence)
 

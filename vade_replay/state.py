@@ -76,3 +76,6 @@ class WorldState:
     parts: tuple[PartState, ...]     # sorted by name, same order as Scene.parts
     base_pose: sp.Pose | None
     grips: tuple[tuple[str, bool], ...]  # last grip per hand, sorted by hand
+    # Derived from ``parts``, kept so that a frame need not look at every part: indices of
+    # the parts not at rest on the table (step._awake); None: not known, look at all.
+    awake: tuple[int, ...] | None = None

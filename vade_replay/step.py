@@ -40,7 +40,9 @@ class _Frame:
     grips: dict[str, bool] = field(default_factory=dict)
     base_pose: sp.Pose | None = None
     base_prev: sp.Pose | None = None   # the base pose at the previous frame
+    awake: tuple[int, ...] = ()        # parts not at rest on the table, at the frame start
     events: list[Event] = field(default_factory=list)
+    modes_changed: bool = False
 
     @property
     def dt_s(self) -> float:
@@ -54,6 +56,7 @@ class _Frame:
         old = self.parts[index]
         check_transition(old.mode, new.mode, cause, part=old.name, frame=self.inputs.frame)
         self.parts[index] = new
+        self.modes_changed = True
         self.events.append(ModeChanged(self.inputs.frame, old.name, cause.value, old.mode.value,
                                        new.mode.value))
 
@@ -63,14 +66,22 @@ def initial_state(scene: Scene, *, time_ns: int = 0) -> WorldState:
     parts = tuple(PartState(body.name, body.initial_mode, body.initial_pose)
                   for body in scene.parts)
     base_pose = scene.base.initial_pose if scene.base else None
-    return WorldState(-1, time_ns, parts, base_pose, ((LEFT, False), (RIGHT, False)))
+    return WorldState(-1, time_ns, parts, base_pose, ((LEFT, False), (RIGHT, False)),
+                      _awake(parts))
+
+
+def _awake(parts) -> tuple[int, ...]:
+    """Indices of the parts a frame has to look at: all but those at rest on the table
+    (STATIC), which nothing but a grab moves; the grab stage looks at every part."""
+    return tuple(i for i, part in enumerate(parts) if part.mode is not Mode.STATIC)
 
 
 def step(scene: Scene, collision: CollisionWorld, state: WorldState,
          inputs: TrackerFrame) -> tuple[WorldState, tuple[Event, ...]]:
     """Advance the world by one frame of tracker inputs."""
+    awake = state.awake if state.awake is not None else _awake(state.parts)
     f = _Frame(scene, collision, inputs, state.time_ns, list(state.parts),
-               base_pose=state.base_pose, base_prev=state.base_pose)
+               base_pose=state.base_pose, base_prev=state.base_pose, awake=awake)
     _read_hands(f, state)
     _move_base(f)
     _follow_hands(f)
@@ -80,8 +91,10 @@ def step(scene: Scene, collision: CollisionWorld, state: WorldState,
     _carry_with_base(f)
     _releases(f, state)
     _grabs(f, state)
-    new_state = WorldState(inputs.frame, inputs.time_ns, tuple(f.parts), f.base_pose,
-                           tuple(sorted(f.grips.items())))
+    parts = tuple(f.parts)
+    new_state = WorldState(inputs.frame, inputs.time_ns, parts, f.base_pose,
+                           tuple(sorted(f.grips.items())),
+                           _awake(parts) if f.modes_changed else awake)
     return new_state, tuple(f.events)
 
 
@@ -107,7 +120,8 @@ def _move_base(f: _Frame) -> None:
 def _follow_hands(f: _Frame) -> None:
     physics = f.scene.physics
     keep = max(physics.release_window, 2)
-    for index, part in enumerate(f.parts):
+    for index in f.awake:
+        part = f.parts[index]
         if part.mode is not Mode.INHAND:
             continue
         held: Held = part.motion  # type: ignore[assignment]
@@ -125,8 +139,8 @@ def _follow_hands(f: _Frame) -> None:
 
 
 def _move_free_parts(f: _Frame) -> None:
-    for index, part in enumerate(f.parts):
-        if part.mode is Mode.INSPACE:
+    for index in f.awake:
+        if f.parts[index].mode is Mode.INSPACE:
             _fly(f, index)
 
 
@@ -135,7 +149,8 @@ def _releases(f: _Frame, state: WorldState) -> None:
     for hand in sorted(f.grips):
         if not (previous.get(hand, False) and not f.grips[hand]):
             continue
-        for index, part in enumerate(f.parts):
+        for index in f.awake:
+            part = f.parts[index]
             if part.mode is Mode.INHAND and part.motion.hand == hand:  # type: ignore[union-attr]
                 _release(f, index, hand)
 
@@ -243,6 +258,11 @@ def _release(f: _Frame, index: int, hand: str) -> None:
 
 def _flight_pose(f: _Frame, body: Body, start: free.Flight, t_ns: int):
     physics = f.scene.physics
+    stats = f.collision.stats
+    stats["closed_form_evals"] += 1  # the CM's parabola
+    if t_ns > start.t_ns and physics.free_rotation != "constant_omega":
+        stats["integrator_steps"] += onbase.substeps((t_ns - start.t_ns) * 1e-9,
+                                                     physics.free_rotation_max_step_s)
     flight = free.advance(start, t_ns, model=physics.free_rotation, moments=body.principal_moments,
                           order=physics.free_rotation_order,
                           max_step_s=physics.free_rotation_max_step_s)
@@ -577,7 +597,8 @@ def _leave(f: _Frame, index: int, cause: Cause, rel: sp.Pose, v_rel: sp.Vec3,
 
 def _check_resting_on_base(f: _Frame) -> None:
     """ONBASESTATIC: does gravity now pull it off, or overcome static friction?"""
-    for index, part in enumerate(f.parts):
+    for index in f.awake:
+        part = f.parts[index]
         if part.mode is not Mode.ONBASESTATIC or f.base_pose is None:
             continue
         body = f.scene.parts[index]
@@ -601,7 +622,8 @@ def _carry_with_base(f: _Frame) -> None:
     """Parts at rest on the base or placed ride with it exactly."""
     if f.base_pose is None:
         return
-    for index, part in enumerate(f.parts):
+    for index in f.awake:
+        part = f.parts[index]
         if part.mode is Mode.ONBASESTATIC:
             m = part.motion
             if isinstance(m, Resting):
@@ -618,8 +640,8 @@ def _carry_with_base(f: _Frame) -> None:
 
 
 def _move_on_base(f: _Frame) -> None:
-    for index, part in enumerate(f.parts):
-        if part.mode is Mode.ONBASESLIDE and f.base_pose is not None:
+    for index in f.awake:
+        if f.parts[index].mode is Mode.ONBASESLIDE and f.base_pose is not None:
             _slide_and_turn(f, index)
 
 
@@ -652,6 +674,9 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
         steps = onbase.substeps(dt, physics.onbase_max_step_s)
         if mate.slide_dirs:
             path = onbase.GravityPath(physics.gravity_slide, q0, q1)
+            f.collision.stats["closed_form_evals" if physics.slide_integrator == "analytic"
+                              else "integrator_steps"] += (
+                1 if physics.slide_integrator == "paper" else steps)
             x1, v1 = onbase.slide(mate.kind, mate.base_dirs, _axis(mate), mate.slide_dirs, path,
                                   m.slide, m.slide_rate, dt, steps,
                                   f_static=mate.static_friction, f_dynamic=mate.dynamic_friction,
@@ -664,6 +689,8 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
                 _alpha_at_rest(body, mate, m, _to_base(f, physics.gravity_rotation)))
                 * mate.inertia_about_axis <= mate.holding_torque)
             if not held:
+                f.collision.stats["integrator_steps"] += (
+                    1 if physics.turn_integrator == "paper" else steps)
                 a1, w1 = onbase.turn(force, m.angle, m.angle_rate, dt, steps,
                                      physics.turn_integrator)
                 if mate.holding_torque > 0.0 and m.angle_rate * w1 <= 0.0 and w1 != 0.0 \
@@ -855,10 +882,25 @@ def snapshot(part: PartState) -> PartSnapshot:
 
 
 def frame_record(scene: Scene, state: WorldState, inputs: TrackerFrame,
-                 events: tuple[Event, ...]) -> FrameRecord:
-    """What a frame derived, in the shape the recording and the review consume."""
+                 events: tuple[Event, ...], *,
+                 previous: tuple[WorldState, FrameRecord] | None = None) -> FrameRecord:
+    """What a frame derived, in the shape the recording and the review consume.
+
+    With ``previous`` (the state and record of the frame before), a part that no stage
+    looked at keeps last frame's snapshot object, so a scene of many resting parts costs
+    little here and in the encoder (``codec.FrameEncoder`` reuses an unchanged snapshot's
+    text). Only the parts awake before or after the step can have changed.
+    """
     base = None
     if scene.base is not None and state.base_pose is not None:
         base = PartSnapshot(scene.base.name, Mode.INHAND.value, state.base_pose.position,
                             state.base_pose.rotation, sp.ZERO3, sp.ZERO3)
-    return FrameRecord(inputs, base, tuple(snapshot(p) for p in state.parts), events)
+    if previous is None or previous[0].awake is None or state.awake is None:
+        return FrameRecord(inputs, base, tuple(snapshot(p) for p in state.parts), events)
+    prev_state, prev_record = previous
+    snaps = list(prev_record.parts)
+    parts, prev_parts = state.parts, prev_state.parts
+    for index in set(prev_state.awake).union(state.awake):
+        if parts[index] is not prev_parts[index]:
+            snaps[index] = snapshot(parts[index])
+    return FrameRecord(inputs, base, tuple(snaps), events)
