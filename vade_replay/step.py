@@ -184,8 +184,18 @@ def _grab(f: _Frame, hand: str) -> None:
     hand_pose = f.hands[hand]
     frame = f.inputs.frame
     candidates = []
+    hx, hy, hz = hand_pose.position
+    stats = f.collision.stats
     for index, part in enumerate(f.parts):
         if part.mode not in _GRABBABLE:
+            continue
+        # Bounding sphere about the part frame's origin first: most parts are far away.
+        body = f.scene.parts[index]
+        lo, hi = body.bbox_min, body.bbox_max
+        reach = math.sqrt(sum(max(-a, b) ** 2 for a, b in zip(lo, hi))) + physics.grab_radius
+        px, py, pz = part.pose.position
+        stats["bounding_tests"] += 1
+        if (px - hx) ** 2 + (py - hy) ** 2 + (pz - hz) ** 2 > reach * reach:
             continue
         d = _distance_to_box(f.scene.parts[index], part.pose, hand_pose.position)
         if d <= physics.grab_radius:
@@ -394,6 +404,7 @@ def _base_path(f: _Frame, center: sp.Vec3, reach: float) -> _BasePath | None:
     end = f.base_pose
     travel = sp.norm(sp.sub(end.position, start.position))
     middle = sp.scale(sp.add(start.position, end.position), 0.5)
+    f.collision.stats["bounding_tests"] += 1
     if sp.norm(sp.sub(center, middle)) > reach + 0.5 * travel + f.collision.base_radius:
         return None
     dt = f.dt_s
@@ -475,6 +486,7 @@ def _time_of_contact(f: _Frame, body: Body, start: free.Flight, near: tuple[int,
 # --- constrained motion on the base (paper 5.2, 5.3, 6) -----------------------------------
 
 _CA_BASE_ITERATIONS = 4096
+_INSIDE_ENVELOPE = True  # the shortcut of _sweep for turning in place (off in a test)
 _CONTACT_SLACK_M = 1e-9  # round-off allowance for a part moving along an obstacle it touches
 
 
@@ -658,6 +670,26 @@ def _clear_blocks(f: _Frame, body: Body, mate: cn.Mate, m: OnBase) -> OnBase:
     return m
 
 
+def _static_hold(mate: cn.Mate, m: OnBase, path: onbase.GravityPath, integrator: str) -> bool:
+    """At rest and held by static friction all frame long, whatever the sub-steps sample:
+    then sliding would leave the coordinates exactly as they are, and is skipped.
+
+    Within the frame gravity (base axes) turns by at most ``phi``, so it moves by at most
+    ``|g| phi`` from its start value; the drive along the slide directions (after the
+    blocked projection) and the normal load on an axis or a plane are 1-Lipschitz in g.
+    """
+    if any(m.slide_rate) or integrator not in ("analytic", "midpoint") \
+            or mate.kind not in ("axis", "plane"):
+        return False
+    g0 = path.g0
+    gmag = math.sqrt(sp.dot(g0, g0))
+    drift = gmag * path.phi + 1e-12 * gmag
+    n_load, _ = onbase.normal_load(mate.kind, mate.base_dirs, _axis(mate), g0)
+    gt = onbase.project_blocked(onbase.tangential(mate.slide_dirs, g0), m.blocked_slide)
+    drive = math.sqrt(sum(c * c for c in gt))
+    return drive + drift <= max(mate.static_friction, mate.dynamic_friction) * (n_load - drift)
+
+
 def _slide_and_turn(f: _Frame, index: int) -> None:
     """ONBASESLIDE: integrate the coordinates, then the two checks of section 6."""
     part = f.parts[index]
@@ -674,6 +706,7 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
         steps = onbase.substeps(dt, physics.onbase_max_step_s)
         if mate.slide_dirs:
             path = onbase.GravityPath(physics.gravity_slide, q0, q1)
+        if mate.slide_dirs and not _static_hold(mate, m, path, physics.slide_integrator):
             f.collision.stats["closed_form_evals" if physics.slide_integrator == "analytic"
                               else "integrator_steps"] += (
                 1 if physics.slide_integrator == "paper" else steps)
@@ -780,6 +813,13 @@ def _sweep(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, x1: tuple[float, ...
         reach = max(math.sqrt(sum((a - c) ** 2 for a, c in zip(x, m.clear_at))) for x in (x0, x1))
         if reach < m.clearance - tol:
             return m, None
+        # Turning in place inside its envelope (the solid of revolution about the shaft,
+        # which the clearance measures for a turning part): no angle brings any point of
+        # the part nearer the base than the envelope, so a part resting against the base
+        # (blocked along the shaft) turns without a query.
+        if _INSIDE_ENVELOPE and mate.turn and x1 == x0 == m.clear_at \
+                and m.clearance >= 0.5 * tol:
+            return m, None
     if mate.kind == "axis":
         mode, lift = CheckMode.SKIP_COAXIAL, sp.ZERO3
     else:
@@ -833,7 +873,7 @@ def _sweep(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, x1: tuple[float, ...
                                                     cn._rotation_between((0.0, 0.0, 1.0), u_p))
         else:
             clearance = d
-        return replace(m, clear_at=x1, clearance=clearance if clearance > tol else 0.0), None
+        return replace(m, clear_at=x1, clearance=clearance if clearance >= 0.5 * tol else 0.0), None
     # Which coordinate ran into the base: try each alone from the contact point.
     blame_slide, blame_turn = bool(x0) and dx > 0.0, mate.turn and da > 0.0
     if blame_slide and blame_turn:

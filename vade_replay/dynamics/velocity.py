@@ -19,6 +19,9 @@ less than half a turn per frame are measured right.
 
 from __future__ import annotations
 
+import struct
+from functools import lru_cache
+
 from .. import spatial as sp
 
 Sample = tuple[int, sp.Vec3, sp.Quat]  # time_ns, world CM, world rotation of the part
@@ -40,6 +43,36 @@ def _distinct(history: tuple[Sample, ...]) -> list[Sample]:
     return out
 
 
+@lru_cache(maxsize=16)
+def _moments(times: tuple[float, ...]) -> tuple[float, float, float, float, float]:
+    """Sums of t^k and the determinant of the normal equations of x(t) = c0 + c1 t + c2 t^2
+    (the same for every coordinate and for both velocities; a steady tracker repeats them)."""
+    n = len(times)
+    s1 = sum(times)
+    s2 = sum(t * t for t in times)
+    s3 = sum(t * t * t for t in times)
+    s4 = sum(t * t * t * t for t in times)
+    det = n * (s2 * s4 - s3 * s3) - s1 * (s1 * s4 - s3 * s2) + s2 * (s1 * s3 - s2 * s2)
+    return s1, s2, s3, s4, det
+
+
+_TURNS: dict[bytes, sp.Vec3] = {}
+_PACK = struct.Struct("8d").pack
+
+
+def _turn_between(older: sp.Quat, newer: sp.Quat) -> sp.Vec3:
+    """Rotation vector from ``newer`` to ``older`` (world axes). Each pair is met again as
+    the window slides, so it is remembered, keyed by the exact bits (-0.0 is not 0.0):
+    a pure function, so the cache changes no result."""
+    key = _PACK(*older, *newer)
+    turn = _TURNS.get(key)
+    if turn is None:
+        if len(_TURNS) >= 256:
+            _TURNS.clear()
+        turn = _TURNS[key] = sp.quat_to_rotvec(sp.quat_mul(older, sp.quat_conj(newer)))
+    return turn
+
+
 def _slope_at_zero(times: list[float], values: list[sp.Vec3]) -> sp.Vec3:
     """d/dt at t = 0 of the least-squares polynomial (degree 2, or 1 for two points)."""
     n = len(times)
@@ -48,12 +81,7 @@ def _slope_at_zero(times: list[float], values: list[sp.Vec3]) -> sp.Vec3:
     if n == 2:
         dt = times[1] - times[0]
         return sp.scale(sp.sub(values[1], values[0]), 1.0 / dt)
-    # Normal equations of x(t) = c0 + c1 t + c2 t^2; the slope at 0 is c1 (Cramer's rule).
-    s1 = sum(times)
-    s2 = sum(t * t for t in times)
-    s3 = sum(t * t * t for t in times)
-    s4 = sum(t * t * t * t for t in times)
-    det = n * (s2 * s4 - s3 * s3) - s1 * (s1 * s4 - s3 * s2) + s2 * (s1 * s3 - s2 * s2)
+    s1, s2, s3, s4, det = _moments(tuple(times))
     if det == 0.0:
         return sp.ZERO3
     out = []
@@ -81,7 +109,7 @@ def estimate(history: tuple[Sample, ...], *, method: str, window: int) -> tuple[
     # half a turn per window is not folded back into [0, pi].
     rotvecs = [sp.ZERO3]
     for (_, _, older), (_, _, newer) in zip(reversed(samples[:-1]), reversed(samples[1:])):
-        step = sp.quat_to_rotvec(sp.quat_mul(older, sp.quat_conj(newer)))
+        step = _turn_between(older, newer)
         rotvecs.append(sp.add(rotvecs[-1], step))
     rotvecs.reverse()
     return _slope_at_zero(times, positions), _slope_at_zero(times, rotvecs)

@@ -1,0 +1,106 @@
+"""A scene pays only for what it needs, and the savings change no result.
+
+Each shortcut (resting parts skipped, snapshots and their text reused, a held slide not
+integrated, a part turning inside its envelope not queried) is checked twice: the counters
+show the work is gone, and turning the shortcut off gives the same frames bit for bit.
+"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from conftest import RECORDINGS, make_session
+from vade_replay import step as step_module
+from vade_replay.bench.sessions import three_part_session
+from vade_replay.collision import CollisionWorld
+from vade_replay.recording import Recording
+from vade_replay.replay import simulate
+from vade_replay.session import load
+
+
+def _run(session):
+    scene = session.build_scene()
+    world = CollisionWorld(scene)
+    records = list(simulate(scene, session.tracker_frames(), collision=world))
+    return records, world.stats
+
+
+def _values(records):
+    return [(r.frame, r.base, tuple(r.parts), r.events) for r in records]
+
+
+def _moving_part(resting: int, duration: float = 6.0):
+    return make_session(three_part_session(duration, static_parts=resting, gear=False, box=False))
+
+
+def test_resting_parts_cost_no_queries_and_no_integration():
+    alone, alone_stats = _run(_moving_part(0))
+    crowd, crowd_stats = _run(_moving_part(60))
+    # The cylinder's story is the same among 60 resting boxes ...
+    assert [r.parts[0] for r in alone] == [r.parts[0] for r in crowd]
+    # ... and costs the same work: grabbing looks at each box once through a bounding
+    # sphere, and nothing else ever looks at them.
+    for key in ("fcl_distance_queries", "integrator_steps", "closed_form_evals"):
+        assert crowd_stats[key] == alone_stats[key], key
+    grabs = sum(1 for r in alone for e in r.events if e.kind == "PartGrabbed")
+    assert grabs >= 2
+    assert crowd_stats["bounding_tests"] == alone_stats["bounding_tests"] + 60 * grabs
+    # The boxes never moved and their snapshots are the very same objects frame to frame.
+    assert all(crowd[i].parts[5] is crowd[i + 1].parts[5] for i in range(len(crowd) - 1))
+    assert crowd[-1].parts[5].mode == "STATIC"
+
+
+def test_reused_snapshots_equal_snapshots_made_afresh(monkeypatch):
+    session = _moving_part(8)
+    reused, _ = _run(session)
+    original = step_module.frame_record
+    monkeypatch.setattr("vade_replay.replay.frame_record",
+                        lambda *a, previous=None, **k: original(*a, **k))
+    fresh, _ = _run(session)
+    assert _values(reused) == _values(fresh)
+
+
+def test_a_resting_part_among_many_can_be_grabbed():
+    doc = three_part_session(3.0, static_parts=30, gear=False, box=False)
+    # Reach for the box in the middle of the grid instead of the cylinder.
+    target = doc["parts"][16]
+    x, y, z = target["pose"]["position"]
+    doc["tracker"]["devices"]["right_hand"] = [
+        {"t": 0.0, "position": [x, y, z + 0.01], "grip": False}, {"t": 0.5, "grip": True},
+        {"t": 1.0, "position": [x, y, z + 0.2]}]
+    records, _ = _run(make_session(doc))
+    grabbed = [e.part for r in records for e in r.events if e.kind == "PartGrabbed"]
+    assert grabbed == [target["name"]]
+    moved = next(p for p in records[-1].parts if p.name == target["name"])
+    assert moved.mode == "INHAND" and moved.position[2] > z + 0.15
+
+
+def test_a_slide_held_by_static_friction_is_not_integrated_and_changes_nothing(monkeypatch):
+    session = load(RECORDINGS / "gear_pendulum.json")
+    fast, fast_stats = _run(session)
+    monkeypatch.setattr(step_module, "_static_hold", lambda *a: False)
+    slow, slow_stats = _run(session)
+    assert _values(fast) == _values(slow)
+    assert fast_stats["closed_form_evals"] == 0 < slow_stats["closed_form_evals"]
+
+
+def test_turning_inside_the_envelope_against_the_base_is_not_queried(monkeypatch):
+    session = load(RECORDINGS / "gear_tilted_shaft.json")
+    fast, fast_stats = _run(session)
+    monkeypatch.setattr(step_module, "_INSIDE_ENVELOPE", False)
+    slow, slow_stats = _run(session)
+    assert _values(fast) == _values(slow)
+    assert fast_stats["fcl_distance_queries"] * 10 < slow_stats["fcl_distance_queries"]
+
+
+@pytest.mark.parametrize("name", ["gear_pendulum", "throw_and_catch", "plane_block_edge"])
+def test_the_replay_summary_reports_the_counters(name):
+    from vade_replay.replay import replay
+    counters = replay(Recording(RECORDINGS / f"{name}.mcap")).counters
+    assert set(counters) == {"fcl_distance_queries", "bounding_tests", "integrator_steps",
+                             "closed_form_evals"}
+    assert all(isinstance(v, int) and v >= 0 for v in counters.values())
+    assert counters["integrator_steps"] + counters["closed_form_evals"] > 0
+    json.dumps(counters)
