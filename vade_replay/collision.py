@@ -88,7 +88,10 @@ class CollisionWorld:
     """Collision geometry of a Scene, built once."""
 
     def __init__(self, scene: Scene) -> None:
-        self._part_models = {body.name: _bvh(body) for body in scene.parts}
+        # A part's BVH is built the first time it is queried: parts that only ever rest on
+        # the table never pay for one.
+        self._bodies = {body.name: body for body in scene.parts}
+        self._part_models: dict[str, fcl.BVHModel] = {}
         self._fixed: list[_Fixed] = []
         for body in scene.environment:
             pose = body.initial_pose
@@ -117,6 +120,12 @@ class CollisionWorld:
         self.stats = {"bounding_tests": 0, "fcl_distance_queries": 0, "integrator_steps": 0,
                       "closed_form_evals": 0}
 
+    def _model(self, part: str) -> fcl.BVHModel:
+        model = self._part_models.get(part)
+        if model is None:
+            model = self._part_models[part] = _bvh(self._bodies[part])
+        return model
+
     @staticmethod
     def _mate_geometry(body: Body, base: Body, mate: Mate, whole, identity) -> _MateGeometry:
         def obj(model):
@@ -142,9 +151,9 @@ class CollisionWorld:
         if mode is CheckMode.KEEP_COPLANAR:
             model, other = geometry.part_feature, geometry.base_feature
         elif mode is CheckMode.NOCARE_COPLANAR:
-            model, other = self._part_models[part], geometry.base_whole
+            model, other = self._model(part), geometry.base_whole
         else:
-            model, other = self._part_models[part], geometry.base_rest
+            model, other = self._model(part), geometry.base_rest
         if model is None or other is None:
             return float("inf")
         self.stats["fcl_distance_queries"] += 1
@@ -178,7 +187,7 @@ class CollisionWorld:
         if self._base_whole is None:
             return float("inf")
         self.stats["fcl_distance_queries"] += 1
-        return _distance(fcl.CollisionObject(self._part_models[part], _transform(base_from_part)),
+        return _distance(fcl.CollisionObject(self._model(part), _transform(base_from_part)),
                          self._base_whole)
 
     def base_contact_normal(self, part: str, base_from_part: sp.Pose) -> sp.Vec3 | None:
@@ -188,7 +197,7 @@ class CollisionWorld:
             return None
         self.stats["fcl_distance_queries"] += 1
         result = fcl.DistanceResult()
-        d = fcl.distance(fcl.CollisionObject(self._part_models[part], _transform(base_from_part)),
+        d = fcl.distance(fcl.CollisionObject(self._model(part), _transform(base_from_part)),
                          self._base_whole, fcl.DistanceRequest(enable_nearest_points=True),
                          result)
         if not d > 0.0:
@@ -219,7 +228,7 @@ class CollisionWorld:
     def distance_to_environment(self, part: str, pose: sp.Pose,
                                 candidates: tuple[int, ...]) -> tuple[float, int]:
         """Smallest distance from the posed part to the candidates (<= 0 when touching)."""
-        obj = fcl.CollisionObject(self._part_models[part], _transform(pose))
+        obj = fcl.CollisionObject(self._model(part), _transform(pose))
         best, which = float("inf"), -1
         for index in candidates:
             self.stats["fcl_distance_queries"] += 1

@@ -9,6 +9,7 @@ are made read-only.
 from __future__ import annotations
 
 import io
+import json
 import math
 from dataclasses import dataclass, field, replace
 
@@ -17,6 +18,7 @@ import trimesh
 
 from . import constraints as cn
 from . import spatial as sp
+from .dynamics.free import COMPOSITIONS, FREE_ROTATIONS
 from .dynamics.onbase import SLIDE_INTEGRATORS, TURN_INTEGRATORS
 from .errors import SessionError
 from .massprops import MassProperties, check, parse_creo_report
@@ -37,7 +39,7 @@ class Physics:
     gravity_scale_free: float = 0.25
     gravity_scale_slide: float = 1.0
     gravity_scale_rotation: float = 1.0
-    free_rotation: str = "momentum"          # paper: constant_omega
+    free_rotation: str = "momentum"          # paper: constant_omega; rk4, euler: benchmark
     # Measured (tests/test_free_flight.py, 10 s tumbling box): order 6 in one step per 60 Hz
     # frame is 6e-8 rad off a DOP853 reference at 1.1 ms per simulated second; order 4 at
     # 1/240 s steps is 2e-6 rad at 1.9 ms.
@@ -56,12 +58,30 @@ class Physics:
     slide_integrator: str = "analytic"       # midpoint: the older scheme; paper: eq. 4
     turn_integrator: str = "yoshida6"        # paper: eq. 11 once per frame
     onbase_max_step_s: float = 1.0 / 240.0   # sub-step bound for both
+    # Separate bounds for turning and sliding (vade-bench: they want different ones);
+    # None: onbase_max_step_s. Read through turn_step_s / slide_step_s.
+    turn_max_step_s: float | None = None
+    slide_max_step_s: float | None = None
 
     def __post_init__(self) -> None:
+        if self.free_rotation not in FREE_ROTATIONS:
+            raise ValueError(f"free_rotation must be one of {FREE_ROTATIONS}")
+        if self.free_rotation_order not in COMPOSITIONS:
+            raise ValueError(f"free_rotation_order must be one of {tuple(COMPOSITIONS)}")
         if self.slide_integrator not in SLIDE_INTEGRATORS:
             raise ValueError(f"slide_integrator must be one of {SLIDE_INTEGRATORS}")
         if self.turn_integrator not in TURN_INTEGRATORS:
             raise ValueError(f"turn_integrator must be one of {TURN_INTEGRATORS}")
+
+    @property
+    def turn_step_s(self) -> float:
+        """Longest sub-step of turning on a shaft."""
+        return self.onbase_max_step_s if self.turn_max_step_s is None else self.turn_max_step_s
+
+    @property
+    def slide_step_s(self) -> float:
+        """Longest sub-step of sliding on the base."""
+        return self.onbase_max_step_s if self.slide_max_step_s is None else self.slide_max_step_s
 
     @property
     def gravity_slide(self) -> sp.Vec3:
@@ -286,8 +306,36 @@ def _principal(props: MassProperties) -> tuple[sp.Vec3, sp.Quat]:
     return _vec(moments), sp.quat_from_matrix(axes)
 
 
+# Keys of a part's document that do not change its geometry or mass.
+_PLACEMENT_KEYS = ("name", "pose", "color", "assembly", "hand_from_base")
+
+
 def _body(doc: dict, length_factor: float, files: dict[str, bytes], *, where: str, file: str,
-          mode: Mode, needs_mass: bool) -> Body:
+          mode: Mode, needs_mass: bool, shapes: dict | None = None) -> Body:
+    # Parts made alike (a tray of identical screws) share their mesh and mass properties:
+    # ``shapes`` remembers them for one scene, keyed by everything else in the document.
+    key = json.dumps([{k: v for k, v in doc.items() if k not in _PLACEMENT_KEYS},
+                      length_factor, needs_mass], sort_keys=True)
+    made = shapes.get(key) if shapes is not None else None
+    if made is None:
+        made = _geometry(doc, length_factor, files, where=where, file=file,
+                         needs_mass=needs_mass)
+        if shapes is not None:
+            shapes[key] = made
+    vertices, faces, props, moments, part_from_principal, radius = made
+    return Body(
+        name=doc["name"], vertices=vertices, faces=faces, mass_kg=props.mass_kg,
+        center_of_mass=props.center_of_mass, inertia_cm=props.inertia_cm,
+        principal_moments=moments, part_from_principal=part_from_principal,
+        radius_about_cm=radius, bbox_min=_vec(vertices.min(axis=0)),
+        bbox_max=_vec(vertices.max(axis=0)),
+        initial_pose=pose_from_doc(doc.get("pose"), length_factor, where=f"{where}.pose",
+                                   file=file),
+        initial_mode=mode, color=tuple(doc["color"]) if "color" in doc else None)
+
+
+def _geometry(doc: dict, length_factor: float, files: dict[str, bytes], *, where: str,
+              file: str, needs_mass: bool):
     mesh = _mesh_from_shape(doc["shape"], length_factor, files, where=where, file=file)
     if needs_mass:
         props = _mass_properties(doc, mesh, length_factor, files, where=where, file=file)
@@ -299,15 +347,7 @@ def _body(doc: dict, length_factor: float, files: dict[str, bytes], *, where: st
     radius = float(np.max(np.linalg.norm(vertices - np.array(props.center_of_mass), axis=1)))
     faces = np.array(mesh.faces, dtype=np.int64)
     faces.setflags(write=False)
-    return Body(
-        name=doc["name"], vertices=_frozen(vertices), faces=faces, mass_kg=props.mass_kg,
-        center_of_mass=props.center_of_mass, inertia_cm=props.inertia_cm,
-        principal_moments=moments, part_from_principal=part_from_principal,
-        radius_about_cm=radius, bbox_min=_vec(vertices.min(axis=0)),
-        bbox_max=_vec(vertices.max(axis=0)),
-        initial_pose=pose_from_doc(doc.get("pose"), length_factor, where=f"{where}.pose",
-                                   file=file),
-        initial_mode=mode, color=tuple(doc["color"]) if "color" in doc else None)
+    return _frozen(vertices), faces, props, moments, part_from_principal, radius
 
 
 def _feature(doc: dict, key: str, f: float) -> tuple[sp.Vec3, sp.Vec3]:
@@ -394,8 +434,10 @@ def build_scene(session: dict, files: dict[str, bytes], *, file: str = "<session
     names = [p["name"] for p in session["parts"]]
     if len(set(names)) != len(names):
         raise SessionError("part names must be unique", file=file, field="parts")
+    shapes: dict = {}
     parts = tuple(sorted(
-        (_body(doc, f, files, where=f"parts[{i}]", file=file, mode=Mode.STATIC, needs_mass=True)
+        (_body(doc, f, files, where=f"parts[{i}]", file=file, mode=Mode.STATIC, needs_mass=True,
+               shapes=shapes)
          for i, doc in enumerate(session["parts"])), key=lambda b: b.name))
     base = None
     hand_from_base = sp.IDENTITY
