@@ -9,6 +9,13 @@ angular velocity. ``momentum`` integrates it by splitting the kinetic energy
 one principal axis, so ``|L|`` and the world ``L`` are conserved to round-off and the scheme
 is symplectic; Strang splitting is second order and Yoshida's compositions raise it to
 fourth or sixth. ``constant_omega`` is the paper's eq. 1b read as ``R(t) = exp(t [w0]x) R0``.
+
+Two textbook schemes on Euler's equations (``L' = L x w`` in body axes, ``w = L / I``) and the
+quaternion kinematics (``q' = q (w, 0) / 2``) are selectable too, so that the benchmark can
+weigh them against the splitting: ``rk4`` (classical Runge-Kutta on both, the quaternion
+normalised after every step; order 4, neither ``|L|`` nor the energy is conserved) and
+``euler`` (semi-implicit Euler: ``L += h L x w(L)``, then the orientation turns by the exact
+rotation ``exp(h w(L_new))`` in body axes; order 1, ``|L|`` grows by ``O(h^2)`` a step).
 """
 
 from __future__ import annotations
@@ -25,6 +32,7 @@ _W1, _W2, _W3 = -1.17767998417887, 0.235573213359357, 0.784513610477560
 _W0 = 1.0 - 2.0 * (_W1 + _W2 + _W3)
 _Y6 = (_W3, _W2, _W1, _W0, _W1, _W2, _W3)
 COMPOSITIONS = {2: (1.0,), 4: _Y4, 6: _Y6}
+FREE_ROTATIONS = ("momentum", "constant_omega", "rk4", "euler")
 
 
 @dataclass(frozen=True, slots=True)
@@ -111,6 +119,62 @@ def rotate_momentum(q: sp.Quat, momentum: sp.Vec3, dt_s: float, moments: sp.Vec3
     return sp.quat_normalize(q), (m[0], m[1], m[2])
 
 
+def _rates(x: float, y: float, z: float, s: float, m0: float, m1: float, m2: float,
+           i0: float, i1: float, i2: float) -> tuple[float, ...]:
+    """Euler's equations and the quaternion kinematics: (q', L') at (q, L), body axes."""
+    wx, wy, wz = m0 * i0, m1 * i1, m2 * i2
+    return (0.5 * (s * wx + y * wz - z * wy), 0.5 * (s * wy + z * wx - x * wz),
+            0.5 * (s * wz + x * wy - y * wx), -0.5 * (x * wx + y * wy + z * wz),
+            m1 * wz - m2 * wy, m2 * wx - m0 * wz, m0 * wy - m1 * wx)
+
+
+def rotate_rk4(q: sp.Quat, momentum: sp.Vec3, dt_s: float, moments: sp.Vec3, *,
+               max_step_s: float) -> tuple[sp.Quat, sp.Vec3]:
+    """Classical RK4 on Euler's equations and the quaternion kinematics (normalised)."""
+    if dt_s <= 0.0:
+        return q, momentum
+    steps = max(1, math.ceil(dt_s / max_step_s - 1e-9))
+    h = dt_s / steps
+    h2, h6 = 0.5 * h, h / 6.0
+    inv = (1.0 / moments[0], 1.0 / moments[1], 1.0 / moments[2])
+    x, y, z, s = q
+    m0, m1, m2 = momentum
+    for _ in range(steps):
+        a = _rates(x, y, z, s, m0, m1, m2, *inv)
+        b = _rates(x + h2 * a[0], y + h2 * a[1], z + h2 * a[2], s + h2 * a[3],
+                   m0 + h2 * a[4], m1 + h2 * a[5], m2 + h2 * a[6], *inv)
+        c = _rates(x + h2 * b[0], y + h2 * b[1], z + h2 * b[2], s + h2 * b[3],
+                   m0 + h2 * b[4], m1 + h2 * b[5], m2 + h2 * b[6], *inv)
+        d = _rates(x + h * c[0], y + h * c[1], z + h * c[2], s + h * c[3],
+                   m0 + h * c[4], m1 + h * c[5], m2 + h * c[6], *inv)
+        x += h6 * (a[0] + 2.0 * (b[0] + c[0]) + d[0])
+        y += h6 * (a[1] + 2.0 * (b[1] + c[1]) + d[1])
+        z += h6 * (a[2] + 2.0 * (b[2] + c[2]) + d[2])
+        s += h6 * (a[3] + 2.0 * (b[3] + c[3]) + d[3])
+        m0 += h6 * (a[4] + 2.0 * (b[4] + c[4]) + d[4])
+        m1 += h6 * (a[5] + 2.0 * (b[5] + c[5]) + d[5])
+        m2 += h6 * (a[6] + 2.0 * (b[6] + c[6]) + d[6])
+        x, y, z, s = sp.quat_normalize((x, y, z, s))
+    return (x, y, z, s), (m0, m1, m2)
+
+
+def rotate_euler(q: sp.Quat, momentum: sp.Vec3, dt_s: float, moments: sp.Vec3, *,
+                 max_step_s: float) -> tuple[sp.Quat, sp.Vec3]:
+    """Semi-implicit Euler: momentum first, then an exact turn at the new angular velocity."""
+    if dt_s <= 0.0:
+        return q, momentum
+    steps = max(1, math.ceil(dt_s / max_step_s - 1e-9))
+    h = dt_s / steps
+    i0, i1, i2 = moments
+    m0, m1, m2 = momentum
+    for _ in range(steps):
+        w0, w1, w2 = m0 / i0, m1 / i1, m2 / i2
+        m0, m1, m2 = (m0 + h * (m1 * w2 - m2 * w1), m1 + h * (m2 * w0 - m0 * w2),
+                      m2 + h * (m0 * w1 - m1 * w0))
+        q = sp.quat_mul(q, sp.quat_from_rotvec((h * m0 / i0, h * m1 / i1, h * m2 / i2)))
+    return sp.quat_normalize(q), (m0, m1, m2)
+
+
 def advance(flight: Flight, t_ns: int, *, model: str, moments: sp.Vec3, order: int,
             max_step_s: float) -> Flight:
     """The flight with its rotation state moved to ``t_ns`` (translation is closed form)."""
@@ -122,8 +186,15 @@ def advance(flight: Flight, t_ns: int, *, model: str, moments: sp.Vec3, order: i
                                           flight.world_from_principal))
         return Flight(flight.t0_ns, flight.cm0, flight.v0, t_ns, q, flight.momentum_principal,
                       flight.omega_world, flight.base_clear)
-    q, m = rotate_momentum(flight.world_from_principal, flight.momentum_principal, dt, moments,
-                           order=order, max_step_s=max_step_s)
+    if model == "rk4":
+        q, m = rotate_rk4(flight.world_from_principal, flight.momentum_principal, dt, moments,
+                          max_step_s=max_step_s)
+    elif model == "euler":
+        q, m = rotate_euler(flight.world_from_principal, flight.momentum_principal, dt, moments,
+                            max_step_s=max_step_s)
+    else:
+        q, m = rotate_momentum(flight.world_from_principal, flight.momentum_principal, dt,
+                               moments, order=order, max_step_s=max_step_s)
     return Flight(flight.t0_ns, flight.cm0, flight.v0, t_ns, q, m, flight.omega_world,
                   flight.base_clear)
 

@@ -34,6 +34,11 @@ sampled at each sub-step's mid time and held for the sub-step; ``slide_integrato
 - ``midpoint``: the constant-acceleration update with the friction direction frozen at the
   sub-step's start. The same as ``analytic`` along ``g_t``; across it, first order
   (2.7e-3 m at 1/240 s and 2.7e-4 m at 1/2400 s in the still-incline case above).
+- ``euler``: semi-implicit (symplectic) Euler, for the benchmark: ``v += a h; x += v h``,
+  first order even under constant acceleration. Friction never reverses it: a sub-step whose
+  new velocity points against the old one ends at rest where it started (``x += 0 h``, the
+  scheme's own position update with the velocity it stopped at); from rest the static test
+  decides, as for the others.
 
 Turning: ``J w' = m ((r_perp x g) . u) - f_r w`` with ``r_perp(theta)`` the CM offset turned
 by ``theta`` about the shaft. Integrators:
@@ -43,6 +48,10 @@ by ``theta`` about the shaft. Integrators:
   Symplectic for the undamped pendulum (bounded energy error, no drift), order 4 / 6.
 - ``verlet``: the Strang splitting itself, order 2, symplectic.
 - ``rk4``: classical Runge-Kutta, order 4, not symplectic (energy drifts).
+- ``euler``: semi-implicit (symplectic) Euler, order 1, for the benchmark: exact viscous
+  decay and a kick at the sub-step's start time, then a drift with the new rate:
+  ``w = w e^{-c h} + alpha(theta, t) h; theta += w h``. Symplectic for the undamped
+  pendulum (bounded energy error), first order.
 - ``paper``: eq. 11, one step per frame: ``w += alpha dt; A += w dt + 0.5 alpha dt^2``.
 """
 
@@ -53,8 +62,8 @@ import math
 from .. import spatial as sp
 from .free import COMPOSITIONS
 
-TURN_INTEGRATORS = ("yoshida6", "yoshida4", "verlet", "rk4", "paper")
-SLIDE_INTEGRATORS = ("analytic", "midpoint", "paper")
+TURN_INTEGRATORS = ("yoshida6", "yoshida4", "verlet", "rk4", "euler", "paper")
+SLIDE_INTEGRATORS = ("analytic", "midpoint", "euler", "paper")
 _TURN_WEIGHTS = {"verlet": COMPOSITIONS[2], "yoshida4": COMPOSITIONS[4],
                  "yoshida6": COMPOSITIONS[6]}
 
@@ -180,6 +189,32 @@ def _slide_substep(x: list[float], v: list[float], h: float, gt: tuple[float, ..
             x[i] += v[i] * h + 0.5 * acc[i] * h * h
             v[i] += acc[i] * h
         return
+
+
+def _euler_substep(x: list[float], v: list[float], h: float, gt: tuple[float, ...],
+                   n_load: float, fs: float, fd: float) -> None:
+    """One semi-implicit Euler sub-step (``v += a h; x += v h``); edits x, v in place."""
+    k = len(x)
+    speed = math.sqrt(sum(c * c for c in v))
+    if speed == 0.0:
+        gmag = math.sqrt(sum(c * c for c in gt))
+        if gmag <= fs * n_load or gmag <= fd * n_load:
+            return
+        scale = 1.0 - fd * n_load / gmag
+        for i in range(k):
+            v[i] = gt[i] * scale * h
+            x[i] += v[i] * h
+        return
+    friction = fd * n_load / speed
+    new = [v[i] + h * (gt[i] - friction * v[i]) for i in range(k)]
+    if sum(a * b for a, b in zip(new, v)) <= 0.0:
+        # Friction would turn it back: it stops, and stays where it was in this sub-step.
+        for i in range(k):
+            v[i] = 0.0
+        return
+    for i in range(k):
+        v[i] = new[i]
+        x[i] += new[i] * h
 
 
 # Below these ratios the friction direction does not turn measurably within a sub-step (the
@@ -334,6 +369,12 @@ def turn(force: TurnForce, theta: float, omega: float, dt: float, steps: int,
             theta += h / 6.0 * (k1t + 2.0 * k2t + 2.0 * k3t + k4t)
             omega += h / 6.0 * (k1w + 2.0 * k2w + 2.0 * k3w + k4w)
         return theta, omega
+    if integrator == "euler":
+        decay = math.exp(-force.damping * h)
+        for i in range(steps):
+            omega = omega * decay + h * force.alpha(theta, i * h * inv_dt)
+            theta += h * omega
+        return theta, omega
     stages = [(w * h, 0.5 * w * h, math.exp(-0.5 * force.damping * w * h))
               for w in _TURN_WEIGHTS[integrator]]
     t = 0.0
@@ -373,6 +414,13 @@ def slide(mate_kind: str, normals: tuple[sp.Vec3, ...], axis: sp.Vec3 | None,
             vs[i] += a * dt
         return tuple(xs), tuple(vs)
     h = dt / steps
+    if integrator == "euler":
+        for i in range(steps):
+            g = path.at((i + 0.5) / steps)
+            n_load, _ = normal_load(mate_kind, normals, axis, g)
+            gt = project_blocked(tangential(dirs, g), blocked)
+            _euler_substep(xs, vs, h, gt, n_load, f_static, f_dynamic)
+        return tuple(xs), tuple(vs)
     plane_exact = integrator == "analytic"
     for i in range(steps):
         g = path.at((i + 0.5) / steps)
