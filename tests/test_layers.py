@@ -18,7 +18,8 @@ OWNERS = {
                  "cli/review.py", "vade_replay/screenshot.py"},
     "jsonschema": {"vade_replay/session.py"},
     "playwright": {"vade_replay/screenshot.py"},
-    "scipy": set(),  # tests and benchmarks only
+    "scipy": {"vade_replay/bench/physics.py"},  # tests and the benchmark's references only
+    "matplotlib": {"vade_replay/bench/report.py"},  # the benchmark's plot, optional
 }
 # Modules that must not touch files: the simulation core.
 NO_IO = ["spatial", "scene", "state", "modes", "events", "frames", "massprops", "step",

@@ -39,10 +39,10 @@ def _synopsis_lines():
 
 @pytest.mark.parametrize("line", _synopsis_lines())
 def test_synopsis_line_parses(line):
-    from vade_replay.cli import goldens, record, replay
+    from vade_replay.cli import bench, goldens, record, replay
 
     parsers = {"vade-record": record._parser, "vade-replay": replay._parser,
-               "vade-goldens": goldens._parser}
+               "vade-goldens": goldens._parser, "vade-bench": bench._parser}
     words = shlex.split(line.replace("[", "").replace("]", "").replace("...", ""))
     words = [w for w in words if w != "NAME"]
     parsers[words[0]]().parse_args(words[1:])

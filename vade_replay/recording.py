@@ -237,3 +237,16 @@ class Recording:
         except RecordingError as exc:
             raise RecordingError(exc.message, file=str(self.path), field=exc.field,
                                  frame=exc.frame) from None
+
+
+def read_and_decode(path: str | Path) -> int:
+    """The floor a replay is measured against (``vade-bench --replay``): read every record
+    of the file and ``json.loads`` every message, doing nothing with them. Returns the
+    number of messages."""
+    count = 0
+    with open(path, "rb") as stream:
+        for record in StreamReader(stream).records:
+            if isinstance(record, Message):
+                json.loads(record.data)
+                count += 1
+    return count

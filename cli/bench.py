@@ -1,0 +1,124 @@
+"""vade-bench: run time against error for every motion and integrator (issue 5).
+
+``vade-bench`` runs the physics work-precision benchmark: a table on the terminal, and
+``physics.csv``, ``physics.json`` and ``work_precision.png`` (with matplotlib, the ``bench``
+extra) in the output folder. ``--replay`` runs the end-to-end replay benchmark instead
+(``replay.csv``, ``replay.json``); ``--all`` runs both. ``--short`` is the CI mode: two step
+counts, short durations, one repeat, a few seconds.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+from pathlib import Path
+
+from vade_replay.errors import ConfigError
+
+from ._common import EXIT_OK, run
+
+ROW_COLS = ["motion", "integrator", "rate_hz", "substeps", "ms_per_sim_s", "cpu_ms_per_sim_s",
+            "error", "unit", "pareto"]
+DEFAULT_COLS = ["motion", "current", "current_ms_per_sim_s", "chosen", "max_step_s",
+                "chosen_ms_per_sim_s", "meets_bounds", "chosen_errors"]
+TARGET_COLS = ["target", "measured", "limit", "met"]
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="vade-bench", description=__doc__.splitlines()[0])
+    p.add_argument("--short", action="store_true",
+                   help="CI mode: few step counts, short durations, one repeat (seconds)")
+    p.add_argument("-o", "--out", default="bench-out", metavar="DIR",
+                   help="folder for the CSV, JSON and PNG files (default bench-out/)")
+    which = p.add_mutually_exclusive_group()
+    which.add_argument("--replay", action="store_true",
+                       help="run the end-to-end replay benchmark instead of the physics one")
+    which.add_argument("--all", action="store_true", help="run both benchmarks")
+    p.add_argument("--repeats", type=int, default=None, metavar="N",
+                   help="timed rounds, the least is kept (default 5; 1 with --short)")
+    p.add_argument("--markdown", action="store_true",
+                   help="print the tables as Markdown (for BENCHMARKS.md)")
+    return p
+
+
+def _print(args, rows: list[dict], *, cols: list[str] | None = None, title: str = "") -> None:
+    from vade_replay.bench import report
+
+    print(report.table(rows, cols=cols, title=title, markdown=args.markdown))
+    print()
+
+
+def _log(text: str) -> None:
+    print(text, file=sys.stderr, flush=True)
+
+
+def _physics(args, out: Path, command: str) -> None:
+    from vade_replay.bench import report
+
+    try:
+        from vade_replay.bench import physics
+    except ImportError as exc:
+        raise ConfigError(f"the physics benchmark needs scipy ({exc}): pip install "
+                          "'vade_replay[bench]'") from None
+    result = physics.measure(args.short, repeats=args.repeats, log=_log)
+    _print(args, result.rows, cols=ROW_COLS,
+                       title="Physics: wall time per simulated second against error "
+                             "(least of repeats; 60 Hz frames)")
+    _print(args, result.references, title="References (their own accuracy)")
+    _print(args, result.defaults, cols=DEFAULT_COLS,
+                       title="Defaults from the data (at 60 Hz, cheapest meeting the bounds)")
+    _print(args, result.targets, cols=TARGET_COLS, title="Targets (issue 5)")
+    report.write_csv(result.rows, out / "physics.csv")
+    report.write_json(out / "physics.json", rows=result.rows, targets=result.targets,
+                      defaults=result.defaults, references=result.references,
+                      command=command, short=args.short)
+    png = report.plot_work_precision(result.rows, out / "work_precision.png",
+                                     title="vade-bench: error against wall time per "
+                                           "simulated second")
+    files = ["physics.csv", "physics.json"] + (["work_precision.png"] if png else [])
+    print(f"wrote {', '.join(str(out / f) for f in files)}")
+    if png is None:
+        print("matplotlib is not installed: no work-precision plot (pip install "
+              "'vade_replay[bench]')")
+
+
+def _replay(args, out: Path, command: str) -> None:
+    from vade_replay.bench import report
+
+    try:
+        from vade_replay.bench import replay as replay_bench
+    except ImportError as exc:
+        raise ConfigError(f"the replay benchmark is not available in this build ({exc})",
+                          field="--replay") from None
+    rows, targets = replay_bench.run(args.short, out)
+    _print(args, rows, title="Replay: record, replay and read-and-decode")
+    _print(args, targets, cols=TARGET_COLS, title="Targets (issue 5)")
+    report.write_csv(rows, out / "replay.csv")
+    report.write_json(out / "replay.json", rows=rows, targets=targets, command=command,
+                      short=args.short)
+    print(f"wrote {out / 'replay.csv'}, {out / 'replay.json'}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    if args.repeats is not None and args.repeats < 1:
+        raise ConfigError("must be at least 1", field="--repeats", value=args.repeats)
+    out = Path(args.out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError(f"cannot create the output folder ({exc.strerror})",
+                          file=str(out), field="-o") from None
+    if not out.is_dir():
+        raise ConfigError("is not a folder", file=str(out), field="-o")
+    command = shlex.join(["vade-bench", *(sys.argv[1:] if argv is None else argv)])
+    if not args.replay:
+        _physics(args, out, command)
+    if args.replay or args.all:
+        _replay(args, out, command)
+    return EXIT_OK
+
+
+def entry() -> None:
+    sys.exit(run(main))

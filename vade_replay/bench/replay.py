@@ -1,0 +1,188 @@
+"""End-to-end speed and memory: ``vade-bench --replay``.
+
+Every figure is a ratio or a rate measured in one run on one machine, so that the noise of
+a shared machine cancels as far as it can. Times are the best of a few repeats.
+
+- **Goldens and a synthetic session** (``sessions.three_part_session``: 60 Hz, three parts,
+  ten minutes; one minute with ``--short``): the time to record, to replay with checking
+  (``vade_replay.replay.replay``, what ``vade-replay`` runs), and to merely read and decode
+  the same file (every MCAP record read, every message ``json.loads``-ed). Targets: replay
+  at most 2x the read-and-decode, at least 300x real time for the three-part session.
+- **Memory**: peak resident memory of a replay, each in a fresh process, of a 60-minute
+  and a 1-minute session (5 and 1 with ``--short``). Target: within 1.2x.
+- **Pay only for what the scene needs**: the same moving part alone and among 200 resting
+  ones: the simulation alone (step and snapshots) and record + replay end to end, with the
+  counters of the replay summary. Target: at most 1.5x.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from ..collision import CollisionWorld
+from ..recording import Recording, read_and_decode
+from ..replay import record, replay, simulate
+from ..session import load, parse
+from .sessions import three_part_session
+
+GOLDENS = Path(__file__).resolve().parents[2] / "recordings"
+
+
+def _best(fn, repeats: int) -> float:
+    best = float("inf")
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def _session(doc: dict):
+    return parse(json.dumps(doc).encode(), {}, source=f"<{doc['name']}>")
+
+
+def _end_to_end(name: str, session, work: Path, repeats: int) -> dict:
+    path = work / f"{name}.mcap"
+    t_record = _best(lambda: record(session, path), repeats)
+    summary = replay(Recording(path))
+    if not summary.match:
+        raise RuntimeError(f"{name}: the replay diverged: {summary.first_divergence}")
+    t_replay = _best(lambda: replay(Recording(path)), repeats)
+    t_read = _best(lambda: read_and_decode(path), repeats)
+
+    def setup():
+        scene = Recording(path).session.build_scene()
+        CollisionWorld(scene)
+    t_setup = _best(setup, repeats)
+    sim_s = summary.duration_s + 1.0 / 60.0
+    return {"table": "end_to_end", "session": name, "frames": summary.frames,
+            "sim_s": round(sim_s, 3), "parts": len(summary.parts),
+            "record_s": t_record, "replay_s": t_replay, "read_decode_s": t_read,
+            "setup_s": t_setup,
+            "replay_over_read": t_replay / t_read, "x_real_time": sim_s / t_replay,
+            "us_per_frame": t_replay / summary.frames * 1e6,
+            "file_mb": path.stat().st_size / 1e6, **_counters(summary.counters)}
+
+
+def _counters(counters: dict) -> dict:
+    return {key: counters.get(key, 0) for key in
+            ("fcl_distance_queries", "bounding_tests", "integrator_steps", "closed_form_evals")}
+
+
+_PEAK = """
+import resource, sys, time
+from vade_replay.recording import Recording
+from vade_replay.replay import replay
+t0 = time.perf_counter()
+s = replay(Recording(sys.argv[1]))
+assert s.match, s.first_divergence
+print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, s.frames, time.perf_counter() - t0)
+"""
+
+
+def _peak_memory(path: Path) -> tuple[float, int, float]:
+    """Peak resident memory (MB) of replaying ``path`` in a fresh process."""
+    out = subprocess.run([sys.executable, "-c", _PEAK, str(path)], check=True,
+                         capture_output=True, text=True).stdout.split()
+    return int(out[0]) / 1024.0, int(out[1]), float(out[2])
+
+
+def _memory(short: bool, work: Path) -> list[dict]:
+    rows = []
+    for minutes in ((1, 5) if short else (1, 60)):
+        path = work / f"memory_{minutes}min.mcap"
+        record(_session(three_part_session(minutes * 60.0, name=f"memory_{minutes}min")), path)
+        peak, frames, seconds = _peak_memory(path)
+        rows.append({"table": "memory", "session": f"three parts, {minutes} min",
+                     "frames": frames, "peak_rss_mb": peak, "replay_s": seconds,
+                     "file_mb": path.stat().st_size / 1e6})
+    return rows
+
+
+def _simulate_only(session, repeats: int) -> tuple[float, int]:
+    scene = session.build_scene()
+    frames = list(session.tracker_frames())
+
+    def run():
+        for _ in simulate(scene, frames, collision=CollisionWorld(scene)):
+            pass
+    return _best(run, repeats), len(frames)
+
+
+def _static_parts(short: bool, work: Path, repeats: int) -> list[dict]:
+    rows = []
+    duration = 20.0 if short else 60.0
+    for static in (0, 200):
+        doc = three_part_session(duration, static_parts=static, gear=False, box=False,
+                                 name=f"one_moving_{static}_resting")
+        session = _session(doc)
+        t_sim, frames = _simulate_only(session, repeats)
+        row = _end_to_end(doc["name"], session, work, repeats)
+        row.update(table="static_parts", resting_parts=static, simulate_s=t_sim)
+        rows.append(row)
+    return rows
+
+
+def run(short: bool, out_dir: Path) -> tuple[list[dict], list[dict]]:
+    """Measure; return the rows and the target checks (``vade_replay.bench.report``)."""
+    repeats = 2 if short else 3
+    rows: list[dict] = []
+    with tempfile.TemporaryDirectory(prefix="vade-bench-") as tmp:
+        work = Path(tmp)
+        goldens = sorted(GOLDENS.glob("*.json"))
+        for path in goldens[:3] if short else goldens:
+            rows.append(_end_to_end(path.stem, load(path), work, repeats))
+        minutes = 1 if short else 10
+        synthetic = _end_to_end(f"three_parts_{minutes}min",
+                                _session(three_part_session(minutes * 60.0)), work,
+                                1 if not short else repeats)
+        rows.append(synthetic)
+        memory = _memory(short, work)
+        rows += memory
+        static = _static_parts(short, work, repeats)
+        rows += static
+    # Setup (open the file, validate the session, build the scene) is paid once per file
+    # and grows with the number of parts; the rest is paid per frame.
+    per_frame_ratio = ((static[1]["replay_s"] - static[1]["setup_s"])
+                       / (static[0]["replay_s"] - static[0]["setup_s"]))
+    worst_ratio = max(r["replay_over_read"] for r in rows if r["table"] == "end_to_end")
+    alone, crowd = static
+    targets = [
+        {"target": "replay with checking / plain read-and-decode (worst session)",
+         "measured": round(worst_ratio, 2), "limit": "<= 2", "met": worst_ratio <= 2.0},
+        {"target": f"real-time factor, 60 Hz three-part session ({synthetic['session']})",
+         "measured": round(synthetic["x_real_time"], 1), "limit": ">= 300",
+         "met": synthetic["x_real_time"] >= 300.0},
+        {"target": f"peak memory, {memory[1]['session']} / {memory[0]['session']}",
+         "measured": round(memory[1]["peak_rss_mb"] / memory[0]["peak_rss_mb"], 3),
+         "limit": "<= 1.2", "met": memory[1]["peak_rss_mb"] <= 1.2 * memory[0]["peak_rss_mb"]},
+        {"target": "200 resting parts / moving part alone: simulation",
+         "measured": round(crowd["simulate_s"] / alone["simulate_s"], 2), "limit": "<= 1.5",
+         "met": crowd["simulate_s"] <= 1.5 * alone["simulate_s"]},
+        {"target": "200 resting parts / moving part alone: replay, after setup",
+         "measured": round(per_frame_ratio, 2), "limit": "<= 1.5", "met": per_frame_ratio <= 1.5},
+        {"target": "200 resting parts / moving part alone: replay, setup included",
+         "measured": round(crowd["replay_s"] / alone["replay_s"], 2), "limit": "<= 1.5",
+         "met": crowd["replay_s"] <= 1.5 * alone["replay_s"]},
+    ]
+    return rows, targets
+
+
+def machine() -> str:
+    """One line naming the machine, for the figures' provenance."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}"
