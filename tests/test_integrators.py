@@ -263,10 +263,12 @@ def test_a_session_can_select_each_new_scheme():
     assert 1e-6 < sp.quat_angle_between(finals["euler"], finals["momentum"]) < 0.05
 
 
-def test_separate_sub_step_bounds_default_to_the_shared_one():
+def test_sub_step_bounds_default_to_the_benchmarks_choice_or_the_shared_one():
     physics = Physics()
-    assert physics.turn_step_s == physics.slide_step_s == physics.onbase_max_step_s == 1 / 240
+    assert physics.turn_step_s == 1 / 120 and physics.slide_step_s == 1 / 180
+    assert physics.onbase_max_step_s is None
     assert Physics(onbase_max_step_s=0.01).turn_step_s == 0.01
+    assert Physics(onbase_max_step_s=0.01).slide_step_s == 0.01
     split = Physics(turn_max_step_s=1 / 120, slide_max_step_s=1 / 480)
     assert (split.turn_step_s, split.slide_step_s) == (1 / 120, 1 / 480)
     doc = session_doc(parts=[{"name": "b", "shape": {"type": "box", "size": [0.1, 0.1, 0.1]},

@@ -703,15 +703,16 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
     if dt > 0.0:
         q0 = (f.base_prev or f.base_pose).rotation  # type: ignore[union-attr]
         q1 = f.base_pose.rotation  # type: ignore[union-attr]
-        steps = onbase.substeps(dt, physics.onbase_max_step_s)
+        slide_steps = onbase.substeps(dt, physics.slide_step_s)
+        turn_steps = onbase.substeps(dt, physics.turn_step_s)
         if mate.slide_dirs:
             path = onbase.GravityPath(physics.gravity_slide, q0, q1)
         if mate.slide_dirs and not _static_hold(mate, m, path, physics.slide_integrator):
             f.collision.stats["closed_form_evals" if physics.slide_integrator == "analytic"
                               else "integrator_steps"] += (
-                1 if physics.slide_integrator == "paper" else steps)
+                1 if physics.slide_integrator == "paper" else slide_steps)
             x1, v1 = onbase.slide(mate.kind, mate.base_dirs, _axis(mate), mate.slide_dirs, path,
-                                  m.slide, m.slide_rate, dt, steps,
+                                  m.slide, m.slide_rate, dt, slide_steps,
                                   f_static=mate.static_friction, f_dynamic=mate.dynamic_friction,
                                   blocked=m.blocked_slide, integrator=physics.slide_integrator)
         if mate.turn:
@@ -723,8 +724,8 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
                 * mate.inertia_about_axis <= mate.holding_torque)
             if not held:
                 f.collision.stats["integrator_steps"] += (
-                    1 if physics.turn_integrator == "paper" else steps)
-                a1, w1 = onbase.turn(force, m.angle, m.angle_rate, dt, steps,
+                    1 if physics.turn_integrator == "paper" else turn_steps)
+                a1, w1 = onbase.turn(force, m.angle, m.angle_rate, dt, turn_steps,
                                      physics.turn_integrator)
                 if mate.holding_torque > 0.0 and m.angle_rate * w1 <= 0.0 and w1 != 0.0 \
                         and m.angle_rate != 0.0:

@@ -76,32 +76,54 @@ def cm_at(flight: Flight, t_ns: int, gravity: sp.Vec3) -> tuple[sp.Vec3, sp.Vec3
 
 
 def _axis_flow(q: sp.Quat, m: list[float], axis: int, tau: float, moments: sp.Vec3) -> sp.Quat:
-    """Exact flow of T_i = L_i^2 / (2 I_i) for time tau: rotate about principal axis i."""
-    theta = tau * m[axis] / moments[axis]
-    c, s = math.cos(theta), math.sin(theta)
+    """Exact flow of T_i = L_i^2 / (2 I_i) for time tau: rotate about principal axis i.
+
+    One sine and one cosine, of the half angle: the body momentum turns by the full angle
+    (double-angle formulas), the orientation quaternion by the half."""
+    half = 0.5 * tau * m[axis] / moments[axis]
+    hc, hs = math.cos(half), math.sin(half)
+    c, s = hc * hc - hs * hs, 2.0 * hs * hc
     j, k = (axis + 1) % 3, (axis + 2) % 3
     mj, mk = m[j], m[k]
     m[j] = c * mj + s * mk
     m[k] = -s * mj + c * mk
-    half_c, half_s = math.cos(0.5 * theta), math.sin(0.5 * theta)
     qx, qy, qz, qw = q
     if axis == 0:
-        return (qw * half_s + qx * half_c, qy * half_c + qz * half_s,
-                qz * half_c - qy * half_s, qw * half_c - qx * half_s)
+        return (qw * hs + qx * hc, qy * hc + qz * hs, qz * hc - qy * hs, qw * hc - qx * hs)
     if axis == 1:
-        return (qx * half_c - qz * half_s, qw * half_s + qy * half_c,
-                qz * half_c + qx * half_s, qw * half_c - qy * half_s)
-    return (qx * half_c + qy * half_s, qy * half_c - qx * half_s,
-            qw * half_s + qz * half_c, qw * half_c - qz * half_s)
+        return (qx * hc - qz * hs, qw * hs + qy * hc, qz * hc + qx * hs, qw * hc - qy * hs)
+    return (qx * hc + qy * hs, qy * hc - qx * hs, qw * hs + qz * hc, qw * hc - qz * hs)
 
 
-def _strang(q: sp.Quat, m: list[float], h: float, moments: sp.Vec3) -> sp.Quat:
-    # The largest moment in the middle: its flow is the slowest, so the split error is least.
-    q = _axis_flow(q, m, 0, 0.5 * h, moments)
-    q = _axis_flow(q, m, 1, 0.5 * h, moments)
-    q = _axis_flow(q, m, 2, h, moments)
-    q = _axis_flow(q, m, 1, 0.5 * h, moments)
-    return _axis_flow(q, m, 0, 0.5 * h, moments)
+def _flows(order: int, steps: int, h: float) -> tuple[tuple[int, float], ...]:
+    """The axis flows of ``steps`` composed Strang steps of ``h``, as (axis, time).
+
+    Strang: axis 0 for h/2, axis 1 for h/2, axis 2 for h, axis 1 for h/2, axis 0 for h/2
+    (the largest moment in the middle: its flow is the slowest, so the split error is
+    least). Flows about the same axis commute, so where one Strang step ends and the next
+    begins with axis 0 the two half flows are one: 29 flows instead of 35 per sixth-order
+    step. Cached: a steady tracker asks for the same frame length again and again.
+    """
+    key = (order, steps, h)
+    flows = _FLOWS.get(key)
+    if flows is None:
+        out: list[list] = []
+        for _ in range(steps):
+            for w in COMPOSITIONS[order]:
+                wh = w * h
+                for axis, tau in ((0, 0.5 * wh), (1, 0.5 * wh), (2, wh), (1, 0.5 * wh),
+                                  (0, 0.5 * wh)):
+                    if out and out[-1][0] == axis:
+                        out[-1][1] += tau
+                    else:
+                        out.append([axis, tau])
+        if len(_FLOWS) >= 64:
+            _FLOWS.clear()
+        flows = _FLOWS[key] = tuple((axis, tau) for axis, tau in out)
+    return flows
+
+
+_FLOWS: dict[tuple[int, int, float], tuple[tuple[int, float], ...]] = {}
 
 
 def rotate_momentum(q: sp.Quat, momentum: sp.Vec3, dt_s: float, moments: sp.Vec3, *,
@@ -110,13 +132,34 @@ def rotate_momentum(q: sp.Quat, momentum: sp.Vec3, dt_s: float, moments: sp.Vec3
     if dt_s <= 0.0:
         return q, momentum
     steps = max(1, math.ceil(dt_s / max_step_s - 1e-9))
-    h = dt_s / steps
-    weights = COMPOSITIONS[order]
-    m = [momentum[0], momentum[1], momentum[2]]
-    for _ in range(steps):
-        for w in weights:
-            q = _strang(q, m, w * h, moments)
-    return sp.quat_normalize(q), (m[0], m[1], m[2])
+    # _axis_flow inlined: the three axes' flows, in the order _flows gives.
+    i0, i1, i2 = moments
+    m0, m1, m2 = momentum
+    qx, qy, qz, qw = q
+    cos, sin = math.cos, math.sin
+    for axis, tau in _flows(order, steps, dt_s / steps):
+        if axis == 0:
+            half = 0.5 * tau * m0 / i0
+            hc, hs = cos(half), sin(half)
+            c, s = hc * hc - hs * hs, 2.0 * hs * hc
+            m1, m2 = c * m1 + s * m2, -s * m1 + c * m2
+            qx, qy, qz, qw = (qw * hs + qx * hc, qy * hc + qz * hs, qz * hc - qy * hs,
+                              qw * hc - qx * hs)
+        elif axis == 1:
+            half = 0.5 * tau * m1 / i1
+            hc, hs = cos(half), sin(half)
+            c, s = hc * hc - hs * hs, 2.0 * hs * hc
+            m2, m0 = c * m2 + s * m0, -s * m2 + c * m0
+            qx, qy, qz, qw = (qx * hc - qz * hs, qw * hs + qy * hc, qz * hc + qx * hs,
+                              qw * hc - qy * hs)
+        else:
+            half = 0.5 * tau * m2 / i2
+            hc, hs = cos(half), sin(half)
+            c, s = hc * hc - hs * hs, 2.0 * hs * hc
+            m0, m1 = c * m0 + s * m1, -s * m0 + c * m1
+            qx, qy, qz, qw = (qx * hc + qy * hs, qy * hc - qx * hs, qw * hs + qz * hc,
+                              qw * hc - qz * hs)
+    return sp.quat_normalize((qx, qy, qz, qw)), (m0, m1, m2)
 
 
 def _rates(x: float, y: float, z: float, s: float, m0: float, m1: float, m2: float,
