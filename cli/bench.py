@@ -91,8 +91,13 @@ def _replay(args, out: Path, command: str) -> None:
     except ImportError as exc:
         raise ConfigError(f"the replay benchmark is not available in this build ({exc})",
                           field="--replay") from None
-    rows, targets = replay_bench.run(args.short, out)
-    _print(args, rows, title="Replay: record, replay and read-and-decode")
+    rows, targets = replay_bench.run(args.short, out, log=_log)
+    print(f"machine: {replay_bench.machine()}\n")
+    for name, title in replay_bench.TABLES.items():
+        group = [{k: v for k, v in row.items() if k != "table"} for row in rows
+                 if row["table"] == name]
+        if group:
+            _print(args, group, title=title)
     _print(args, targets, cols=TARGET_COLS, title="Targets (issue 5)")
     report.write_csv(rows, out / "replay.csv")
     report.write_json(out / "replay.json", rows=rows, targets=targets, command=command,

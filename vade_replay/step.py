@@ -670,20 +670,29 @@ def _clear_blocks(f: _Frame, body: Body, mate: cn.Mate, m: OnBase) -> OnBase:
     return m
 
 
-def _static_hold(mate: cn.Mate, m: OnBase, path: onbase.GravityPath, integrator: str) -> bool:
+def _static_hold(mate: cn.Mate, m: OnBase, physics, turn_path: onbase.GravityPath | None,
+                 q0: sp.Quat, q1: sp.Quat) -> bool:
     """At rest and held by static friction all frame long, whatever the sub-steps sample:
     then sliding would leave the coordinates exactly as they are, and is skipped.
 
     Within the frame gravity (base axes) turns by at most ``phi``, so it moves by at most
     ``|g| phi`` from its start value; the drive along the slide directions (after the
     blocked projection) and the normal load on an axis or a plane are 1-Lipschitz in g.
+    A part that also turns reuses the turning's gravity path, scaled (a test only: when it
+    fails, sliding gets its own path).
     """
-    if any(m.slide_rate) or integrator not in ("analytic", "midpoint") \
+    if any(m.slide_rate) or physics.slide_integrator not in ("analytic", "midpoint") \
             or mate.kind not in ("axis", "plane"):
         return False
-    g0 = path.g0
+    if turn_path is not None and physics.gravity_scale_rotation != 0.0:
+        g0 = sp.scale(turn_path.g0,
+                      physics.gravity_scale_slide / physics.gravity_scale_rotation)
+        phi = turn_path.phi
+    else:
+        path = onbase.GravityPath(physics.gravity_slide, q0, q1)
+        g0, phi = path.g0, path.phi
     gmag = math.sqrt(sp.dot(g0, g0))
-    drift = gmag * path.phi + 1e-12 * gmag
+    drift = gmag * phi + 1e-12 * gmag
     n_load, _ = onbase.normal_load(mate.kind, mate.base_dirs, _axis(mate), g0)
     gt = onbase.project_blocked(onbase.tangential(mate.slide_dirs, g0), m.blocked_slide)
     drive = math.sqrt(sum(c * c for c in gt))
@@ -705,9 +714,9 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
         q1 = f.base_pose.rotation  # type: ignore[union-attr]
         slide_steps = onbase.substeps(dt, physics.slide_step_s)
         turn_steps = onbase.substeps(dt, physics.turn_step_s)
-        if mate.slide_dirs:
+        turn_path = onbase.GravityPath(physics.gravity_rotation, q0, q1) if mate.turn else None
+        if mate.slide_dirs and not _static_hold(mate, m, physics, turn_path, q0, q1):
             path = onbase.GravityPath(physics.gravity_slide, q0, q1)
-        if mate.slide_dirs and not _static_hold(mate, m, path, physics.slide_integrator):
             f.collision.stats["closed_form_evals" if physics.slide_integrator == "analytic"
                               else "integrator_steps"] += (
                 1 if physics.slide_integrator == "paper" else slide_steps)
@@ -715,9 +724,8 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
                                   m.slide, m.slide_rate, dt, slide_steps,
                                   f_static=mate.static_friction, f_dynamic=mate.dynamic_friction,
                                   blocked=m.blocked_slide, integrator=physics.slide_integrator)
-        if mate.turn:
-            path = onbase.GravityPath(physics.gravity_rotation, q0, q1)
-            force = onbase.TurnForce(path, mate.base_dirs[0], m.cm_offset, body.mass_kg,
+        if turn_path is not None:
+            force = onbase.TurnForce(turn_path, mate.base_dirs[0], m.cm_offset, body.mass_kg,
                                      mate.inertia_about_axis, mate.rotational_friction)
             held = m.angle_rate == 0.0 and (m.blocked_turn or mate.holding_torque > 0.0 and abs(
                 _alpha_at_rest(body, mate, m, _to_base(f, physics.gravity_rotation)))

@@ -4,12 +4,12 @@ Every figure is a ratio or a rate measured in one run on one machine, so that th
 a shared machine cancels as far as it can. Times are the best of a few repeats.
 
 - **Goldens and a synthetic session** (``sessions.three_part_session``: 60 Hz, three parts,
-  ten minutes; one minute with ``--short``): the time to record, to replay with checking
+  ten minutes; 30 s with ``--short``): the time to record, to replay with checking
   (``vade_replay.replay.replay``, what ``vade-replay`` runs), and to merely read and decode
   the same file (every MCAP record read, every message ``json.loads``-ed). Targets: replay
   at most 2x the read-and-decode, at least 300x real time for the three-part session.
 - **Memory**: peak resident memory of a replay, each in a fresh process, of a 60-minute
-  and a 1-minute session (5 and 1 with ``--short``). Target: within 1.2x.
+  and a 1-minute session (2 and 0.5 with ``--short``). Target: within 1.2x.
 - **Pay only for what the scene needs**: the same moving part alone and among 200 resting
   ones: the simulation alone (step and snapshots) and record + replay end to end, with the
   counters of the replay summary. Target: at most 1.5x.
@@ -96,11 +96,12 @@ def _peak_memory(path: Path) -> tuple[float, int, float]:
 
 def _memory(short: bool, work: Path) -> list[dict]:
     rows = []
-    for minutes in ((1, 5) if short else (1, 60)):
-        path = work / f"memory_{minutes}min.mcap"
-        record(_session(three_part_session(minutes * 60.0, name=f"memory_{minutes}min")), path)
+    for minutes in ((0.5, 2) if short else (1, 60)):
+        path = work / f"memory_{minutes:g}min.mcap"
+        record(_session(three_part_session(minutes * 60.0, name=f"memory_{minutes:g}min")),
+               path)
         peak, frames, seconds = _peak_memory(path)
-        rows.append({"table": "memory", "session": f"three parts, {minutes} min",
+        rows.append({"table": "memory", "session": f"three parts, {minutes:g} min",
                      "frames": frames, "peak_rss_mb": peak, "replay_s": seconds,
                      "file_mb": path.stat().st_size / 1e6})
     return rows
@@ -118,7 +119,7 @@ def _simulate_only(session, repeats: int) -> tuple[float, int]:
 
 def _static_parts(short: bool, work: Path, repeats: int) -> list[dict]:
     rows = []
-    duration = 20.0 if short else 60.0
+    duration = 10.0 if short else 60.0
     for static in (0, 200):
         doc = three_part_session(duration, static_parts=static, gear=False, box=False,
                                  name=f"one_moving_{static}_resting")
@@ -130,22 +131,38 @@ def _static_parts(short: bool, work: Path, repeats: int) -> list[dict]:
     return rows
 
 
-def run(short: bool, out_dir: Path) -> tuple[list[dict], list[dict]]:
-    """Measure; return the rows and the target checks (``vade_replay.bench.report``)."""
-    repeats = 2 if short else 3
+TABLES = {"end_to_end": "Record, replay with checking, and a plain read-and-decode "
+                        "(seconds; best of repeats)",
+          "memory": "Peak resident memory of a replay, each in a fresh process",
+          "static_parts": "One moving part alone and among 200 resting ones"}
+
+
+def run(short: bool, out_dir: Path, log=None) -> tuple[list[dict], list[dict]]:
+    """Measure; return the rows and the target checks (``vade_replay.bench.report``).
+
+    ``short`` (CI): two goldens, a 30 s synthetic session, memory at 0.5 and 2 minutes,
+    10 s scenes of resting parts, one repeat. Otherwise every golden, ten minutes, 1 and
+    60 minutes, 60 s scenes, best of three.
+    """
+    log = log or (lambda text: None)
+    repeats = 1 if short else 3
     rows: list[dict] = []
     with tempfile.TemporaryDirectory(prefix="vade-bench-") as tmp:
         work = Path(tmp)
         goldens = sorted(GOLDENS.glob("*.json"))
-        for path in goldens[:3] if short else goldens:
+        for path in goldens[:2] if short else goldens:
+            log(f"replay: {path.stem}")
             rows.append(_end_to_end(path.stem, load(path), work, repeats))
-        minutes = 1 if short else 10
-        synthetic = _end_to_end(f"three_parts_{minutes}min",
-                                _session(three_part_session(minutes * 60.0)), work,
+        seconds = 30.0 if short else 600.0
+        log(f"replay: three parts, {seconds:g} s")
+        synthetic = _end_to_end(f"three_parts_{seconds:g}s",
+                                _session(three_part_session(seconds)), work,
                                 1 if not short else repeats)
         rows.append(synthetic)
+        log("replay: memory")
         memory = _memory(short, work)
         rows += memory
+        log("replay: resting parts")
         static = _static_parts(short, work, repeats)
         rows += static
     # Setup (open the file, validate the session, build the scene) is paid once per file
