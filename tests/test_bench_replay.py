@@ -1,0 +1,73 @@
+"""vade-bench --replay --short, in-process through the CLI: files, rows, and what must hold
+whatever the machine's speed (timings are reported, never asserted: the machine is noisy).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import pytest
+
+from conftest import RECORDINGS
+from vade_replay.bench import replay as replay_bench
+from vade_replay.cli import bench
+from vade_replay.recording import Recording, read_and_decode
+
+
+@pytest.fixture(scope="module")
+def short_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("bench-replay")
+    assert bench.main(["--replay", "--short", "-o", str(out)]) == 0
+    return out, json.loads((out / "replay.json").read_text())
+
+
+def test_files_hold_every_measurement(short_run):
+    out, doc = short_run
+    with open(out / "replay.csv", newline="") as f:
+        assert len(list(csv.DictReader(f))) == len(doc["rows"])
+    tables = {row["table"] for row in doc["rows"]}
+    assert tables == {"end_to_end", "memory", "static_parts"}
+    assert [t["target"] for t in doc["targets"]][:3] == [
+        "replay with checking / plain read-and-decode (worst session)",
+        "real-time factor, 60 Hz three-part session (three_parts_30s)",
+        "peak memory, three parts, 2 min / three parts, 0.5 min"]
+    for row in doc["rows"]:
+        if row["table"] != "memory":
+            assert row["replay_s"] > 0 and row["read_decode_s"] > 0 and row["frames"] > 100
+
+
+def test_replay_streams_memory_does_not_grow_with_length(short_run):
+    _, doc = short_run
+    short, long_ = [r for r in doc["rows"] if r["table"] == "memory"]
+    assert long_["frames"] > 3.9 * short["frames"]
+    assert long_["peak_rss_mb"] <= 1.2 * short["peak_rss_mb"]
+
+
+def test_resting_parts_add_no_work(short_run):
+    _, doc = short_run
+    alone, crowd = [r for r in doc["rows"] if r["table"] == "static_parts"]
+    assert (alone["resting_parts"], crowd["resting_parts"]) == (0, 200)
+    for key in ("fcl_distance_queries", "integrator_steps", "closed_form_evals"):
+        assert crowd[key] == alone[key], key
+
+
+def test_read_and_decode_reads_every_message():
+    path = RECORDINGS / "throw_and_catch.mcap"
+    frames = list(Recording(path).frames())
+    assert read_and_decode(path) == sum(1 + len(f.derived) for f in frames)
+
+
+def test_the_synthetic_session_exercises_every_kind_of_motion():
+    from conftest import make_session
+    from vade_replay.bench.sessions import three_part_session
+    from vade_replay.replay import simulate
+    session = make_session(three_part_session(12.0))
+    modes = {p.name: set() for p in session.build_scene().parts}
+    for record in simulate(session.build_scene(), session.tracker_frames()):
+        for p in record.parts:
+            modes[p.name].add(p.mode)
+    assert modes["gear"] >= {"INHAND", "ONBASESLIDE"}
+    assert modes["cylinder"] >= {"STATIC", "INHAND", "INSPACE"}
+    assert modes["box"] == {"STATIC"}
+    assert replay_bench.machine()
