@@ -90,6 +90,23 @@ def test_truncated_recording_keeps_what_it_holds(tmp_path):
     _assert_clean_error(run_cli("vade-replay", str(path)), "cut.mcap")
 
 
+def test_flipped_bytes_in_compressed_chunks_never_give_a_traceback(tmp_path):
+    """Damage inside a zstd chunk (a bad disk, a bad copy) is a damaged file, not a crash:
+    the frames before it replay and the file is reported cut short, or it is unusable."""
+    data = bytearray((RECORDINGS / "drop_on_table.mcap").read_bytes())
+    path = tmp_path / "flipped.mcap"
+    start = data.index(b"\x28\xb5\x2f\xfd")  # the first zstd frame (a chunk's data)
+    for offset in range(start + 20, start + 620, 60):
+        damaged = bytearray(data)
+        damaged[offset] ^= 0xFF
+        path.write_bytes(bytes(damaged))
+        result = run_cli("vade-replay", str(path))
+        assert "Traceback" not in result.stderr, result.stderr
+        assert result.returncode in (0, 1, 2), result.stderr
+        if result.returncode == 2:
+            assert "flipped.mcap" in result.stderr
+
+
 def test_malformed_tracker_message_names_the_frame(tmp_path):
     def edit(topic, index, data):
         if topic == "/tracker" and index == 42:

@@ -13,6 +13,7 @@ OWNERS = {
     "trimesh": {"vade_replay/scene.py"},
     "fcl": {"vade_replay/collision.py"},
     "mcap": {"vade_replay/recording.py"},
+    "zstandard": {"vade_replay/recording.py"},
     "rerun": {"vade_replay/view.py"},
     "argparse": {"cli/record.py", "cli/replay.py", "cli/goldens.py", "cli/bench.py",
                  "cli/review.py", "vade_replay/screenshot.py"},

@@ -23,6 +23,7 @@ from mcap.reader import make_reader
 from mcap.records import Attachment, Channel, DataEnd, Footer, Header, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
+from zstandard import ZstdError
 
 from . import codec
 from .errors import RecordingError
@@ -34,7 +35,9 @@ PROFILE = "vade"
 SESSION_ATTACHMENT = "session.json"
 FILE_ATTACHMENT_PREFIX = "files/"
 CHUNK_SECONDS_NS = 10**9
-_READ_ERRORS = (McapError, OSError, EOFError, ValueError, struct.error, KeyError)
+# What a damaged file raises from mcap and its zstd chunks (a flipped byte in a compressed
+# chunk is a ZstdError, not an McapError).
+_READ_ERRORS = (McapError, ZstdError, OSError, EOFError, ValueError, struct.error, KeyError)
 PACKAGES = ("vade_replay", "numpy", "trimesh", "python-fcl", "mcap", "rerun-sdk", "jsonschema")
 
 
