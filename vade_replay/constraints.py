@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -69,6 +70,19 @@ class Mate:
     part_feature_faces: np.ndarray     # indices into the part's faces (read-only)
     base_feature_faces: np.ndarray     # indices into the base's faces (read-only)
     base_rest_faces: np.ndarray        # the base's other faces: what can block the part
+
+    # Derived once, on first use (a frozen dataclass without slots keeps these in its
+    # __dict__; they are not fields, so they take no part in repr or construction).
+
+    @cached_property
+    def unit_axis(self) -> sp.Vec3:
+        """``normalize(base_dirs[0])``: the shaft a part turns about, in base axes."""
+        return sp.normalize(self.base_dirs[0])
+
+    @cached_property
+    def _axial_offsets(self) -> dict:
+        """``axial_offset`` by snap pose: id -> (the pose itself, result)."""
+        return {}
 
 
 @dataclass(frozen=True, eq=False)
@@ -295,8 +309,8 @@ def relative_pose(mate: Mate, base_from_snap: sp.Pose, slide: tuple[float, ...],
     """``base_from_part`` at the given coordinates: slide, then turn about the base axis."""
     pose = base_from_snap
     if angle != 0.0:
-        p, u = mate.base_points[0], mate.base_dirs[0]
-        turn = sp.quat_axis_angle(u, angle)
+        p = mate.base_points[0]
+        turn = sp.quat_unit_axis_angle(mate.unit_axis, angle)
         position = sp.add(p, sp.quat_rotate(turn, sp.sub(pose.position, p)))
         pose = sp.Pose(position, sp.quat_normalize(sp.quat_mul(turn, pose.rotation)))
     if slide:
@@ -313,7 +327,25 @@ def cm_offset_base(mate: Mate, base_from_snap: sp.Pose) -> sp.Vec3:
 
 
 def axial_offset(mate: Mate, base_from_snap: sp.Pose) -> tuple[float, float]:
-    """Where the part's own axis point sits on the base axis at slide 0, and the axis sign."""
+    """Where the part's own axis point sits on the base axis at slide 0, and the axis sign.
+
+    A part keeps its snap pose (the same object) as long as it stays on the mate, and this
+    is asked every frame: it is remembered per mate, keyed by the pose object's identity
+    (the entry holds the pose, so the id cannot be reused while it is there). Exact: the
+    same pose object gives the same result.
+    """
+    memo = mate._axial_offsets
+    hit = memo.get(id(base_from_snap))
+    if hit is not None and hit[0] is base_from_snap:
+        return hit[1]
+    if len(memo) >= 64:
+        memo.clear()
+    value = _axial_offset(mate, base_from_snap)
+    memo[id(base_from_snap)] = (base_from_snap, value)
+    return value
+
+
+def _axial_offset(mate: Mate, base_from_snap: sp.Pose) -> tuple[float, float]:
     u_b = mate.base_dirs[0]
     c = sp.dot(sp.sub(base_from_snap.apply(mate.part_points[0]), mate.base_points[0]), u_b)
     sign = 1.0 if sp.dot(sp.quat_rotate(base_from_snap.rotation, mate.part_dirs[0]), u_b) >= 0 \

@@ -126,7 +126,12 @@ def quat_angle_between(a: Quat, b: Quat) -> float:
 
 
 def quat_axis_angle(axis: Vec3, angle: float) -> Quat:
-    u = normalize(axis)
+    return quat_unit_axis_angle(normalize(axis), angle)
+
+
+def quat_unit_axis_angle(u: Vec3, angle: float) -> Quat:
+    """``quat_axis_angle`` for an axis already normalised (``normalize(axis)``, which a
+    caller can compute once): the same bits, without the square root and divisions."""
     s = math.sin(0.5 * angle)
     return (u[0] * s, u[1] * s, u[2] * s, math.cos(0.5 * angle))
 

@@ -41,6 +41,14 @@ class OnBase:
     clear_at: tuple[float, ...] = ()   # slide coordinates where clearance was measured
     clearance: float = 0.0             # m; 0 means "unknown: query"
 
+    def moved(self, slide: tuple[float, ...], slide_rate: tuple[float, ...], angle: float,
+              angle_rate: float) -> "OnBase":
+        """The same constraint at other coordinates and rates: ``dataclasses.replace``
+        of those four fields, without its generic walk over the fields (once a frame)."""
+        return OnBase(self.mate, self.base_from_snap, slide, slide_rate, angle, angle_rate,
+                      self.cm_offset, self.blocked_slide, self.blocked_turn, self.clear_at,
+                      self.clearance)
+
 
 @dataclass(frozen=True, slots=True)
 class Resting:
@@ -65,6 +73,13 @@ class PartState:
     linear_velocity: sp.Vec3 = sp.ZERO3
     angular_velocity: sp.Vec3 = sp.ZERO3
     motion: object = None  # Held, free.Flight, OnBase, or None
+
+    def moved(self, pose: sp.Pose, linear_velocity: sp.Vec3, angular_velocity: sp.Vec3,
+              motion: object) -> "PartState":
+        """The part in the same mode at another pose, with these velocities and motion:
+        ``dataclasses.replace`` of those four fields, without its generic walk over the
+        fields (several times a frame)."""
+        return PartState(self.name, self.mode, pose, linear_velocity, angular_velocity, motion)
 
 
 @dataclass(frozen=True, slots=True)

@@ -27,7 +27,7 @@ _CA_MAX_ITERATIONS = 10_000
 _MIN_SUPPORT_COS = 0.1
 
 
-@dataclass
+@dataclass(slots=True)
 class _Frame:
     """Scratch space of one step: the parts being rebuilt and the events so far."""
 
@@ -92,8 +92,9 @@ def step(scene: Scene, collision: CollisionWorld, state: WorldState,
     _releases(f, state)
     _grabs(f, state)
     parts = tuple(f.parts)
+    grips = f.grips  # _read_hands sets both hands, in sorted order (LEFT < RIGHT)
     new_state = WorldState(inputs.frame, inputs.time_ns, parts, f.base_pose,
-                           tuple(sorted(f.grips.items())),
+                           ((LEFT, grips[LEFT]), (RIGHT, grips[RIGHT])),
                            _awake(parts) if f.modes_changed else awake)
     return new_state, tuple(f.events)
 
@@ -134,8 +135,7 @@ def _follow_hands(f: _Frame) -> None:
         history = (held.history + ((f.t_ns, cm, pose.rotation),))[-keep:]
         v, w = velocity.estimate(history, method=physics.release_velocity,
                                  window=physics.release_window)
-        f.parts[index] = replace(part, pose=pose, linear_velocity=v, angular_velocity=w,
-                                 motion=Held(held.hand, held.hand_from_part, history))
+        f.parts[index] = part.moved(pose, v, w, Held(held.hand, held.hand_from_part, history))
 
 
 def _move_free_parts(f: _Frame) -> None:
@@ -295,7 +295,7 @@ def _fly(f: _Frame, index: int) -> None:
         f.change_mode(index, PartState(part.name, Mode.STATIC, part.pose), Cause.NUMERICAL_FAULT)
         return
     w_b = free.omega_world(flight, model=physics.free_rotation, moments=body.principal_moments)
-    moved = replace(part, pose=pose_b, linear_velocity=v_b, angular_velocity=w_b, motion=flight)
+    moved = part.moved(pose_b, v_b, w_b, flight)
     # Broad phase: a sphere around the whole path of the CM over the frame, widened by the
     # parabola's sag off its chord and by the part's own size.
     cm_a, _ = free.cm_at(start, t_a, physics.gravity_free)
@@ -586,7 +586,7 @@ def _relative_rates(body: Body, mate: cn.Mate, m: OnBase, slide_rate, angle, ang
     if not mate.turn or angle_rate == 0.0:
         return v, sp.ZERO3
     u = mate.base_dirs[0]
-    r = sp.quat_rotate(sp.quat_axis_angle(u, angle), m.cm_offset)
+    r = sp.quat_rotate(sp.quat_unit_axis_angle(mate.unit_axis, angle), m.cm_offset)
     return sp.add(v, sp.scale(sp.cross(u, r), angle_rate)), sp.scale(u, angle_rate)
 
 
@@ -643,12 +643,12 @@ def _carry_with_base(f: _Frame) -> None:
             else:
                 mate = f.scene.parts[index].assembly.mates[m.mate]  # type: ignore[union-attr]
                 rel = cn.relative_pose(mate, m.base_from_snap, m.slide, m.angle)
-            f.parts[index] = replace(part, pose=f.base_pose.compose(rel),
-                                     linear_velocity=sp.ZERO3, angular_velocity=sp.ZERO3)
+            f.parts[index] = part.moved(f.base_pose.compose(rel), sp.ZERO3, sp.ZERO3, m)
         elif part.mode is Mode.PLACED:
             final = f.scene.parts[index].assembly.final_pose  # type: ignore[union-attr]
             if final is not None:
-                f.parts[index] = replace(part, pose=f.base_pose.compose(final))
+                f.parts[index] = part.moved(f.base_pose.compose(final), part.linear_velocity,
+                                            part.angular_velocity, part.motion)
 
 
 def _move_on_base(f: _Frame) -> None:
@@ -712,11 +712,10 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
     if dt > 0.0:
         q0 = (f.base_prev or f.base_pose).rotation  # type: ignore[union-attr]
         q1 = f.base_pose.rotation  # type: ignore[union-attr]
-        slide_steps = onbase.substeps(dt, physics.slide_step_s)
-        turn_steps = onbase.substeps(dt, physics.turn_step_s)
         turn_path = onbase.GravityPath(physics.gravity_rotation, q0, q1) if mate.turn else None
         if mate.slide_dirs and not _static_hold(mate, m, physics, turn_path, q0, q1):
             path = onbase.GravityPath(physics.gravity_slide, q0, q1)
+            slide_steps = onbase.substeps(dt, physics.slide_step_s)
             f.collision.stats["closed_form_evals" if physics.slide_integrator == "analytic"
                               else "integrator_steps"] += (
                 1 if physics.slide_integrator == "paper" else slide_steps)
@@ -731,6 +730,7 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
                 _alpha_at_rest(body, mate, m, _to_base(f, physics.gravity_rotation)))
                 * mate.inertia_about_axis <= mate.holding_torque)
             if not held:
+                turn_steps = onbase.substeps(dt, physics.turn_step_s)
                 f.collision.stats["integrator_steps"] += (
                     1 if physics.turn_integrator == "paper" else turn_steps)
                 a1, w1 = onbase.turn(force, m.angle, m.angle_rate, dt, turn_steps,
@@ -744,7 +744,7 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
                         f, physics.gravity_rotation))) * mate.inertia_about_axis
                     if torque <= mate.holding_torque:
                         w1 = 0.0
-    if not all(math.isfinite(c) for c in (*x1, *v1, a1, w1)):
+    if not all(map(math.isfinite, (*x1, *v1, a1, w1))):
         f.change_mode(index, replace(part, mode=Mode.ONBASESTATIC, linear_velocity=sp.ZERO3,
                                      angular_velocity=sp.ZERO3,
                                      motion=replace(m, slide_rate=tuple(0.0 for _ in v1),
@@ -762,7 +762,7 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
         v_rel, w_rel = _relative_rates(body, mate, m, v1, a1, w1)
         _leave(f, index, Cause.SLID_OFF, rel, v_rel, w_rel)
         return
-    new = replace(m, slide=x1, slide_rate=v1, angle=a1, angle_rate=w1)
+    new = m.moved(x1, v1, a1, w1)
     if blocked is not None:
         new = _stop_at_block(new, m, x1, a1, blame_slide, blame_turn)  # type: ignore[possibly-undefined]
         f.events.append(ContactMade(f.inputs.frame, part.name, Cause.BLOCKED.value,
@@ -773,10 +773,9 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
         return
     v_rel, w_rel = _relative_rates(body, mate, new, new.slide_rate, new.angle, new.angle_rate)
     q = f.base_pose.rotation  # type: ignore[union-attr]
-    moved = replace(part, pose=f.base_pose.compose(rel),  # type: ignore[union-attr]
-                    linear_velocity=sp.quat_rotate(q, v_rel),
-                    angular_velocity=sp.quat_rotate(q, w_rel), motion=new)
-    at_rest = all(v == 0.0 for v in new.slide_rate) and new.angle_rate == 0.0
+    moved = part.moved(f.base_pose.compose(rel), sp.quat_rotate(q, v_rel),  # type: ignore[union-attr]
+                       sp.quat_rotate(q, w_rel), new)
+    at_rest = new.angle_rate == 0.0 and all(v == 0.0 for v in new.slide_rate)
     if at_rest:
         _, slides, turns = _drive(f, body, mate, new)
         if not (slides or turns):
@@ -815,11 +814,11 @@ def _sweep(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, x1: tuple[float, ...
     ``(lambda, blame_slide, blame_turn)`` where the part touched (within the tolerance)."""
     tol = f.scene.physics.contact_tolerance
     x0, a0 = m.slide, m.angle
-    dx = math.sqrt(sum((b - a) ** 2 for a, b in zip(x0, x1)))
+    dx = _distance(x0, x1)
     da = abs(a1 - a0)
     # The cheap bound: the last measured clearance, minus how far the part can have come.
     if m.clearance > 0.0 and m.clear_at:
-        reach = max(math.sqrt(sum((a - c) ** 2 for a, c in zip(x, m.clear_at))) for x in (x0, x1))
+        reach = max(_distance(x0, m.clear_at), _distance(x1, m.clear_at))
         if reach < m.clearance - tol:
             return m, None
         # Turning in place inside its envelope (the solid of revolution about the shaft,
@@ -892,6 +891,12 @@ def _sweep(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, x1: tuple[float, ...
         if not (blame_slide or blame_turn):
             blame_slide = blame_turn = True
     return replace(m, clearance=0.0, clear_at=()), (hit, blame_slide, blame_turn)
+
+
+def _distance(a: tuple[float, ...], b: tuple[float, ...]) -> float:
+    """Euclidean distance between two points in slide coordinates (summed in order, as
+    written: not ``math.dist``, whose other rounding would move a decision)."""
+    return math.sqrt(sum([(q - p) ** 2 for p, q in zip(a, b)]))
 
 
 def _still_on_base(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, rel: sp.Pose,

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import struct
 from functools import lru_cache
+from operator import mul
 
 from .. import spatial as sp
 
@@ -85,10 +86,12 @@ def _slope_at_zero(times: list[float], values: list[sp.Vec3]) -> sp.Vec3:
     if det == 0.0:
         return sp.ZERO3
     out = []
-    for axis in range(3):
-        y0 = sum(v[axis] for v in values)
-        y1 = sum(t * v[axis] for t, v in zip(times, values))
-        y2 = sum(t * t * v[axis] for t, v in zip(times, values))
+    squares = [t * t for t in times]
+    for column in zip(*values):  # each coordinate over the samples
+        # sum(v), sum(t v), sum(t t v) in sample order, as (t * t) * v
+        y0 = sum(column)
+        y1 = sum(map(mul, times, column))
+        y2 = sum(map(mul, squares, column))
         det1 = n * (y1 * s4 - s3 * y2) - y0 * (s1 * s4 - s3 * s2) + s2 * (s1 * y2 - y1 * s2)
         out.append(det1 / det)
     return (out[0], out[1], out[2])
