@@ -271,8 +271,11 @@ def _flight_pose(f: _Frame, body: Body, start: free.Flight, t_ns: int):
     stats = f.collision.stats
     stats["closed_form_evals"] += 1  # the CM's parabola
     if t_ns > start.t_ns and physics.free_rotation != "constant_omega":
-        stats["integrator_steps"] += onbase.substeps((t_ns - start.t_ns) * 1e-9,
-                                                     physics.free_rotation_max_step_s)
+        if physics.free_rotation == "momentum" and free.symmetry(body.principal_moments):
+            stats["closed_form_evals"] += 1  # an axisymmetric body turns in closed form
+        else:
+            stats["integrator_steps"] += onbase.substeps((t_ns - start.t_ns) * 1e-9,
+                                                         physics.free_rotation_max_step_s)
     flight = free.advance(start, t_ns, model=physics.free_rotation, moments=body.principal_moments,
                           order=physics.free_rotation_order,
                           max_step_s=physics.free_rotation_max_step_s)

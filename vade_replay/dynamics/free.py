@@ -218,6 +218,41 @@ def rotate_euler(q: sp.Quat, momentum: sp.Vec3, dt_s: float, moments: sp.Vec3, *
     return sp.quat_normalize(q), (m0, m1, m2)
 
 
+_SYMMETRY_RTOL = 1e-12
+
+
+def symmetry(moments: sp.Vec3) -> tuple[int, float] | None:
+    """``(axis, I_t)`` for an axisymmetric body: two principal moments equal (to 1e-12 of
+    the largest, round-off of the mass properties) to ``I_t``, ``axis`` the third; None
+    for a body with three distinct moments. A sphere is symmetric about any axis."""
+    i0, i1, i2 = moments
+    top = max(abs(i0), abs(i1), abs(i2))
+    for axis, a, b in ((2, i0, i1), (0, i1, i2), (1, i2, i0)):
+        if abs(a - b) <= _SYMMETRY_RTOL * top:
+            return axis, 0.5 * (a + b)
+    return None
+
+
+def rotate_symmetric(q: sp.Quat, momentum: sp.Vec3, dt_s: float, moments: sp.Vec3,
+                     axis: int, transverse: float) -> tuple[sp.Quat, sp.Vec3]:
+    """The torque-free axisymmetric body in closed form: no integration, no error.
+
+    With ``I_t`` the two equal moments, ``T = |L|^2 / (2 I_t) + L_a^2 (1/I_a - 1/I_t) / 2``.
+    The two terms commute (``|L|^2`` is a Casimir), so the exact flow is the product of
+    theirs: a turn of the body about the world angular momentum at the rate ``|L| / I_t``,
+    and a turn about its own symmetry axis at ``L_a (1/I_a - 1/I_t)`` (which carries the
+    body-axis momentum round that axis: the free precession).
+    """
+    if dt_s <= 0.0:
+        return q, momentum
+    m = [momentum[0], momentum[1], momentum[2]]
+    tau = dt_s * (1.0 / moments[axis] - 1.0 / transverse) * moments[axis]
+    q = _axis_flow(q, m, axis, tau, moments)
+    spin = sp.quat_rotate(q, (m[0], m[1], m[2]))
+    q = sp.quat_mul(sp.quat_from_rotvec(sp.scale(spin, dt_s / transverse)), q)
+    return sp.quat_normalize(q), (m[0], m[1], m[2])
+
+
 def advance(flight: Flight, t_ns: int, *, model: str, moments: sp.Vec3, order: int,
             max_step_s: float) -> Flight:
     """The flight with its rotation state moved to ``t_ns`` (translation is closed form)."""
@@ -235,6 +270,9 @@ def advance(flight: Flight, t_ns: int, *, model: str, moments: sp.Vec3, order: i
     elif model == "euler":
         q, m = rotate_euler(flight.world_from_principal, flight.momentum_principal, dt, moments,
                             max_step_s=max_step_s)
+    elif (sym := symmetry(moments)) is not None:
+        q, m = rotate_symmetric(flight.world_from_principal, flight.momentum_principal, dt,
+                                moments, *sym)
     else:
         q, m = rotate_momentum(flight.world_from_principal, flight.momentum_principal, dt,
                                moments, order=order, max_step_s=max_step_s)
