@@ -847,6 +847,9 @@ def _sweep(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, x1: tuple[float, ...
         return (tuple(p + lam * (q - p) for p, q in zip(x0, x1)), a0 + lam * (a1 - a0))
 
     speed = dx + mate.sweep_radius * da
+    if speed == 0.0:
+        # A move too small to measure (its square underflows): nothing can have come nearer.
+        return m, None
     d0 = distance(x0, a0)
     d = d0
     lam = 0.0

@@ -296,7 +296,10 @@ def max_angular_speed(momentum: sp.Vec3, moments: sp.Vec3) -> float:
     best = sum(xi / (i * i) for xi, i in zip(x, moments))
     for a, b in ((0, 1), (0, 2), (1, 2)):
         ia, ib = moments[a], moments[b]
-        if ia == ib:
+        # Equal moments (or ones a few ulps apart, whose inverses are equal in floats): |w|
+        # is the same all along that edge, which the body reaches only if it is already on
+        # it; the current state's value covers it.
+        if 1.0 / ia == 1.0 / ib:
             continue
         xa = (energy2 - total / ib) / (1.0 / ia - 1.0 / ib)
         xb = total - xa
