@@ -68,6 +68,24 @@ def table(rows: list[dict], *, cols: list[str] | None = None, title: str | None 
     return "\n".join(lines)
 
 
+def pivot(rows: list[dict], *, rate_hz: int = 60) -> list[dict]:
+    """The physics rows as one line per motion and integrator, one column per cost level:
+    "error @ ms per simulated second". ``xN`` is N sub-steps per frame at ``rate_hz``; the
+    paper's scheme (one step per frame) goes in the column of its frame rate, N = rate/60."""
+    levels: dict[float, str] = {}
+    lines: dict[tuple[str, str], dict] = {}
+    for row in rows:
+        n = row["substeps"] * row["rate_hz"] / rate_hz
+        label = f"x{n:g} (1/{rate_hz * n:g} s)"
+        levels[n] = label
+        key = (f"{row['motion']} ({row['unit']})", row["integrator"])
+        line = lines.setdefault(key, {"motion": key[0], "integrator": key[1]})
+        line[label] = f"{_cell(row['error'])} @ {_cell(row['ms_per_sim_s'])}"
+    ordered = [levels[n] for n in sorted(levels)]
+    return [{"motion": line["motion"], "integrator": line["integrator"],
+             **{label: line.get(label, "") for label in ordered}} for line in lines.values()]
+
+
 def _numeric(text: str) -> bool:
     try:
         float(text)
