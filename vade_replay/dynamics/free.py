@@ -214,7 +214,13 @@ def rotate_euler(q: sp.Quat, momentum: sp.Vec3, dt_s: float, moments: sp.Vec3, *
         w0, w1, w2 = m0 / i0, m1 / i1, m2 / i2
         m0, m1, m2 = (m0 + h * (m1 * w2 - m2 * w1), m1 + h * (m2 * w0 - m0 * w2),
                       m2 + h * (m0 * w1 - m1 * w0))
-        q = sp.quat_mul(q, sp.quat_from_rotvec((h * m0 / i0, h * m1 / i1, h * m2 / i2)))
+        turn = (h * m0 / i0, h * m1 / i1, h * m2 / i2)
+        if not math.isfinite(turn[0] * turn[0] + turn[1] * turn[1] + turn[2] * turn[2]):
+            # Unstable (a stiff body at too long a step): NaN, which the step reports as a
+            # numerical fault, rather than an exception from the trigonometry.
+            nan = math.nan
+            return (nan, nan, nan, nan), (nan, nan, nan)
+        q = sp.quat_mul(q, sp.quat_from_rotvec(turn))
     return sp.quat_normalize(q), (m0, m1, m2)
 
 
