@@ -141,6 +141,17 @@ def starts_sliding(gt: tuple[float, ...], n_load: float, f_static: float) -> boo
     return math.sqrt(sum(x * x for x in gt)) > f_static * n_load
 
 
+def _from_rest(gt: tuple[float, ...], n_load: float, fs: float,
+               fd: float) -> list[float] | None:
+    """At rest: None while static friction holds, else the acceleration as it starts to
+    slide (along ``g_t``, dynamic friction opposing the impending motion)."""
+    gmag = math.sqrt(sum(c * c for c in gt))
+    if gmag <= fs * n_load or gmag <= fd * n_load:
+        return None
+    scale = 1.0 - fd * n_load / gmag
+    return [c * scale for c in gt]
+
+
 def _slide_substep(x: list[float], v: list[float], h: float, gt: tuple[float, ...],
                    n_load: float, fs: float, fd: float, plane_exact: bool = False) -> None:
     """One sub-step with Coulomb friction under constant ``g_t``; edits x, v in place.
@@ -153,15 +164,11 @@ def _slide_substep(x: list[float], v: list[float], h: float, gt: tuple[float, ..
     while h > 0.0:
         speed = math.sqrt(sum(c * c for c in v))
         if speed == 0.0:
-            gmag = math.sqrt(sum(c * c for c in gt))
-            if gmag <= fs * n_load or gmag <= fd * n_load:
-                return
-            # Friction opposes the impending motion, which starts along g_t.
-            scale = 1.0 - fd * n_load / gmag
-            for i in range(k):
-                a = gt[i] * scale
-                x[i] += 0.5 * a * h * h
-                v[i] = a * h
+            acc = _from_rest(gt, n_load, fs, fd)
+            if acc is not None:
+                for i in range(k):
+                    x[i] += 0.5 * acc[i] * h * h
+                    v[i] = acc[i] * h
             return
         if plane_exact and k == 2:
             c = fd * n_load
@@ -197,13 +204,11 @@ def _euler_substep(x: list[float], v: list[float], h: float, gt: tuple[float, ..
     k = len(x)
     speed = math.sqrt(sum(c * c for c in v))
     if speed == 0.0:
-        gmag = math.sqrt(sum(c * c for c in gt))
-        if gmag <= fs * n_load or gmag <= fd * n_load:
-            return
-        scale = 1.0 - fd * n_load / gmag
-        for i in range(k):
-            v[i] = gt[i] * scale * h
-            x[i] += v[i] * h
+        acc = _from_rest(gt, n_load, fs, fd)
+        if acc is not None:
+            for i in range(k):
+                v[i] = acc[i] * h
+                x[i] += v[i] * h
         return
     friction = fd * n_load / speed
     new = [v[i] + h * (gt[i] - friction * v[i]) for i in range(k)]
