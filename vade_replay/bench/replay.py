@@ -18,8 +18,6 @@ a shared machine cancels as far as it can. Times are the best of a few repeats.
 from __future__ import annotations
 
 import json
-import os
-import platform
 import subprocess
 import sys
 import tempfile
@@ -30,6 +28,7 @@ from ..collision import CollisionWorld
 from ..recording import Recording, read_and_decode
 from ..replay import record, replay, simulate
 from ..session import load, parse
+from . import report
 from .sessions import three_part_session
 
 GOLDENS = Path(__file__).resolve().parents[2] / "recordings"
@@ -194,12 +193,5 @@ def run(short: bool, out_dir: Path, log=None) -> tuple[list[dict], list[dict]]:
 
 def machine() -> str:
     """One line naming the machine, for the figures' provenance."""
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}"
+    m = report.machine()
+    return f"{m['cpu']}, {m['cores']} cores, Python {m['python']}, numpy {m['numpy']}"
