@@ -78,12 +78,27 @@ def _many(args, overrides: dict[str, str]) -> int:
             print(f"warning: {path}: the recording was cut short (no end records); replayed "
                   f"the {summary.frames} complete frames it holds", file=sys.stderr)
         if not args.json:
-            verdict = "match" if summary.match else f"DIVERGED {summary.first_divergence['text']}"
             cut = " (cut short)" if summary.truncated else ""
-            print(f"{path}: {verdict}{cut}")
+            print(f"{path}: {_verdict(summary, overrides, short=True)}{cut}")
     if args.json:
         print_json(summaries)
     return worst
+
+
+def _verdict(summary, overrides: dict[str, str], *, short: bool = False) -> str:
+    """The one-line result; a what-if says so, since departing is what it is for."""
+    if summary.match:
+        text = "match" if short else (
+            f"match: {summary.frames} frames ({summary.duration_s:.2f} s), "
+            f"{summary.messages_checked} derived messages identical to the recording")
+    else:
+        text = f"DIVERGED{'' if short else ':'} {summary.first_divergence['text']}"
+    if overrides:
+        changes = ", ".join(f"{k}={v}" for k, v in sorted(overrides.items()))
+        text = f"what-if ({changes}): " + (
+            "the recording is unchanged, " + text if summary.match
+            else "departs from the recording: " + summary.first_divergence["text"])
+    return text
 
 
 def _one(args, path: str, overrides: dict[str, str]) -> int:
@@ -98,11 +113,8 @@ def _one(args, path: str, overrides: dict[str, str]) -> int:
               f"replayed the {summary.frames} complete frames it holds", file=sys.stderr)
     if args.json:
         print_json(summary.to_dict())
-    elif summary.match:
-        print(f"match: {summary.frames} frames ({summary.duration_s:.2f} s), "
-              f"{summary.messages_checked} derived messages identical to the recording")
     else:
-        print(f"DIVERGED: {summary.first_divergence['text']}")
+        print(_verdict(summary, overrides))
     if args.rerun:
         from vade_replay.review import write_recording_review
 

@@ -261,3 +261,37 @@ def test_many_recordings_at_once(tmp_path):
     assert "missing.mcap" in result.stderr and "DIVERGED" in result.stdout
     assert result.stdout.count(": match") == 1
     _assert_clean_error(run_cli("vade-replay", *good, "-o", str(tmp_path / "x.mcap")), "-o")
+
+
+UNWRITABLE = Path("/proc/vade-test-cannot-write-here")  # even root cannot create files in /proc
+
+
+@pytest.mark.skipif(not Path("/proc/self").exists(), reason="needs Linux /proc")
+def test_outputs_that_cannot_be_written_are_clean_errors(tmp_path):
+    golden = str(RECORDINGS / "gear_pendulum.mcap")
+    _assert_clean_error(run_cli("vade-replay", golden, "-o", f"{UNWRITABLE}.mcap"),
+                        f"{UNWRITABLE}.mcap", "cannot write")
+    _assert_clean_error(run_cli("vade-replay", golden, "--rerun", f"{UNWRITABLE}.rrd"),
+                        f"{UNWRITABLE}.rrd", "cannot write the review")
+    _assert_clean_error(run_cli("vade-record", str(RECORDINGS / "drop_on_table.json"), "-o",
+                                f"{UNWRITABLE}.mcap"), "cannot write")
+
+
+def test_a_damaged_derived_message_names_file_channel_and_frame(tmp_path):
+    def edit(topic, index, data):
+        if topic == "/foxglove/transforms" and index == 30:
+            return b"\xd3" + data[1:]
+        return data
+
+    path = tmp_path / "damaged.mcap"
+    copy_recording(RECORDINGS / "drop_on_table.mcap", path, edit)
+    _assert_clean_error(run_cli("vade-replay", str(path)), "damaged.mcap", "frame 30",
+                        "/foxglove/transforms", "not JSON")
+
+
+def test_a_what_if_says_so(tmp_path):
+    result = run_cli("vade-replay", str(RECORDINGS / "plane_block_wall.mcap"), "--set",
+                     "physics.friction_dynamic=0.1")
+    assert result.returncode == 0
+    assert result.stdout.startswith("what-if (physics.friction_dynamic=0.1): departs from the "
+                                    "recording: first divergence at frame ")

@@ -77,7 +77,11 @@ class RecordingWriter:
     def __init__(self, path: str | Path, session: Session, scene: Scene, *,
                  extra_metadata: dict[str, str] | None = None) -> None:
         self.path = Path(path)
-        self._stream = open(self.path, "wb")
+        try:
+            self._stream = open(self.path, "wb")
+        except OSError as exc:
+            raise RecordingError(f"cannot write here: {exc.strerror or exc}",
+                                 file=str(self.path)) from None
         self._writer = Writer(self._stream, compression=CompressionType.ZSTD,
                               chunk_size=4 * 1024 * 1024)
         self._writer.start(profile=PROFILE, library=f"vade_replay {package_versions()['vade_replay']}")

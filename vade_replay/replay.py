@@ -19,7 +19,7 @@ from typing import Callable, Iterable, Iterator
 from . import codec
 from .analysis import SessionAnalysis
 from .collision import CollisionWorld
-from .errors import ConfigError, SessionError, VadeError
+from .errors import ConfigError, RecordingError, SessionError, VadeError
 from .frames import FrameRecord, TrackerFrame
 from .recording import RecordedFrame, Recording, RecordingWriter, ensure_writable
 from .scene import PAPER_DEFAULTS, Scene
@@ -128,7 +128,7 @@ def _divergence(inputs: TrackerFrame, recorded: list[tuple[str, bytes]],
     for index in range(max(len(recorded), len(replayed))):
         if index >= len(recorded) or index >= len(replayed):
             extra = replayed[index] if index < len(replayed) else recorded[index]
-            message = json.loads(extra[1])
+            message = codec.loads(extra[1], topic=extra[0], frame=frame)
             return Divergence(frame, t, extra[0], message.get("part"), "message",
                               "<none>" if index >= len(recorded) else message,
                               "<none>" if index >= len(replayed) else message)
@@ -137,7 +137,10 @@ def _divergence(inputs: TrackerFrame, recorded: list[tuple[str, bytes]],
             return Divergence(frame, t, topic_a, None, "channel", topic_a, topic_b)
         if data_a == data_b:
             continue
-        a, b = json.loads(data_a), json.loads(data_b)
+        # The recorded side may be damaged: a message that is not JSON is a RecordingError
+        # naming the channel and frame (replay() adds the file), not a traceback.
+        a = codec.loads(data_a, topic=topic_a, frame=frame)
+        b = codec.loads(data_b, topic=topic_b, frame=frame)
         found = _first_difference(a, b)
         if found is None:
             # Same values, other bytes: not what this encoder writes, so not bit for bit.
@@ -285,6 +288,16 @@ def replay_frames(recording: Recording, scene: Scene, *, check: bool = True,
         yield ReplayFrame(recorded, replayed, derived, divergence)
 
 
+def _with_file(items: Iterator, path: Path) -> Iterator:
+    """The items, with the recording's path added to a RecordingError that lacks one."""
+    try:
+        yield from items
+    except RecordingError as exc:
+        if exc.file is None:
+            exc.file = str(path)
+        raise
+
+
 def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
            out: str | Path | None = None,
            on_frame: Callable[[ReplayFrame], None] | None = None) -> RunSummary:
@@ -308,7 +321,8 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
                                  extra_metadata={"replayed_from": str(recording.path)})
     first_time = None
     try:
-        for item in replay_frames(recording, scene, collision=collision):
+        for item in _with_file(replay_frames(recording, scene, collision=collision),
+                               recording.path):
             if first_time is None:
                 first_time = item.replayed.time_ns
             summary.count(item.replayed, first_time)

@@ -34,6 +34,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
+from vade_replay.errors import ConfigError
 from vade_replay.frames import FrameRecord, PartSnapshot
 
 MODES: tuple[str, ...] = ("INHAND", "ONTOOL", "ONBASESLIDE", "ONBASESTATIC", "INSPACE", "STATIC", "PLACED")
@@ -114,11 +115,15 @@ def write_review(
     # Wall-clock timelines would make two reviews of one session differ for no reason.
     rec.set_log_time_enabled(False)
     rec.set_log_tick_enabled(False)
-    if spawn:
-        rec.spawn(connect=False)
-        rec.set_sinks(rr.GrpcSink(), rr.FileSink(str(path)))
-    else:
-        rec.save(str(path))
+    try:
+        if spawn:
+            rec.spawn(connect=False)
+            rec.set_sinks(rr.GrpcSink(), rr.FileSink(str(path)))
+        else:
+            rec.save(str(path))
+    except (RuntimeError, OSError) as exc:
+        raise ConfigError(f"cannot write the review here ({str(exc).splitlines()[0]})",
+                          file=str(path)) from None
     blueprint = blueprint_from_runs(with_comparison=has_compare)
 
     def send_blueprint() -> None:
