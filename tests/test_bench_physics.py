@@ -69,7 +69,7 @@ def test_the_best_schemes_are_accurate_against_the_references(short_run):
     bar_split = _row(doc, "spinning_bar", "split6", 1)["error"]
     assert bar_split < 1e-5
     assert _row(doc, "spinning_bar", "rk4", 4)["error"] > 10 * bar_split
-    # Gear pendulum, 2 s: the default yoshida6 at 1/240 s.
+    # Gear pendulum, 2 s: yoshida6 at 1/240 s (x4; the default is x2).
     for motion in ("gear_damped", "gear_undamped", "tilted_shaft_turn"):
         assert _row(doc, motion, "yoshida6", 4)["error"] < 1e-7, motion
         assert _row(doc, motion, "paper", 1)["error"] > 0.1, motion

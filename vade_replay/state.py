@@ -94,3 +94,10 @@ class WorldState:
     # Derived from ``parts``, kept so that a frame need not look at every part: indices of
     # the parts not at rest on the table (step._awake); None: not known, look at all.
     awake: tuple[int, ...] | None = None
+    # The ``parts`` tuple ``awake`` was worked out for: a state copied with other parts
+    # (``dataclasses.replace``) does not match it, and its awake set is worked out anew.
+    awake_of: tuple | None = None
+
+    def awake_parts(self) -> tuple[int, ...] | None:
+        """``awake`` if it belongs to these parts, else None (unknown)."""
+        return self.awake if self.awake_of is self.parts else None

@@ -67,7 +67,7 @@ def initial_state(scene: Scene, *, time_ns: int = 0) -> WorldState:
                   for body in scene.parts)
     base_pose = scene.base.initial_pose if scene.base else None
     return WorldState(-1, time_ns, parts, base_pose, ((LEFT, False), (RIGHT, False)),
-                      _awake(parts))
+                      _awake(parts), parts)
 
 
 def _awake(parts) -> tuple[int, ...]:
@@ -79,7 +79,9 @@ def _awake(parts) -> tuple[int, ...]:
 def step(scene: Scene, collision: CollisionWorld, state: WorldState,
          inputs: TrackerFrame) -> tuple[WorldState, tuple[Event, ...]]:
     """Advance the world by one frame of tracker inputs."""
-    awake = state.awake if state.awake is not None else _awake(state.parts)
+    awake = state.awake_parts()
+    if awake is None:
+        awake = _awake(state.parts)
     f = _Frame(scene, collision, inputs, state.time_ns, list(state.parts),
                base_pose=state.base_pose, base_prev=state.base_pose, awake=awake)
     _read_hands(f, state)
@@ -95,7 +97,7 @@ def step(scene: Scene, collision: CollisionWorld, state: WorldState,
     grips = f.grips  # _read_hands sets both hands, in sorted order (LEFT < RIGHT)
     new_state = WorldState(inputs.frame, inputs.time_ns, parts, f.base_pose,
                            ((LEFT, grips[LEFT]), (RIGHT, grips[RIGHT])),
-                           _awake(parts) if f.modes_changed else awake)
+                           _awake(parts) if f.modes_changed else awake, parts)
     return new_state, tuple(f.events)
 
 
@@ -490,6 +492,9 @@ def _time_of_contact(f: _Frame, body: Body, start: free.Flight, near: tuple[int,
 
 _CA_BASE_ITERATIONS = 4096
 _INSIDE_ENVELOPE = True  # the shortcut of _sweep for turning in place (off in a test)
+# Allowance (in tolerances) for fcl's distance from the envelope, a cylinder primitive
+# (GJK), so that the envelope's clearance is a safe lower bound of the part's distance.
+_ENVELOPE_MARGIN = 0.01
 _CONTACT_SLACK_M = 1e-9  # round-off allowance for a part moving along an obstacle it touches
 
 
@@ -824,13 +829,6 @@ def _sweep(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, x1: tuple[float, ...
         reach = max(_distance(x0, m.clear_at), _distance(x1, m.clear_at))
         if reach < m.clearance - tol:
             return m, None
-        # Turning in place inside its envelope (the solid of revolution about the shaft,
-        # which the clearance measures for a turning part): no angle brings any point of
-        # the part nearer the base than the envelope, so a part resting against the base
-        # (blocked along the shaft) turns without a query.
-        if _INSIDE_ENVELOPE and mate.turn and x1 == x0 == m.clear_at \
-                and m.clearance >= 0.5 * tol:
-            return m, None
     if mate.kind == "axis":
         mode, lift = CheckMode.SKIP_COAXIAL, sp.ZERO3
     else:
@@ -854,12 +852,20 @@ def _sweep(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, x1: tuple[float, ...
     d = d0
     lam = 0.0
     hit = None
+    turning_in_place = mate.turn and x1 == x0 == m.clear_at
     if d0 <= tol:
         # Starting in contact (after a block): moving along or away from the obstacle is
         # allowed; going deeper than half the tolerance is not.
-        d_end = distance(x1, a1)
-        hit = 0.0 if d_end < 0.5 * tol - _CONTACT_SLACK_M else None
-        d = d_end
+        if _INSIDE_ENVELOPE and turning_in_place \
+                and m.clearance >= 0.5 * tol + _ENVELOPE_MARGIN * tol:
+            # Turning in place: no angle brings any point of the part nearer the base than
+            # its envelope (the cylinder about the shaft that the clearance measures), which
+            # is more than half the tolerance away, so it cannot go deeper: no query.
+            hit = None
+        else:
+            d_end = distance(x1, a1)
+            hit = 0.0 if d_end < 0.5 * tol - _CONTACT_SLACK_M else None
+            d = d_end
     else:
         for _ in range(_CA_BASE_ITERATIONS):
             step_len = (d - 0.5 * tol) / speed
@@ -878,6 +884,8 @@ def _sweep(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, x1: tuple[float, ...
             d = distance(x1, a1)
             hit = 1.0 if d <= tol else None
     if hit is None:
+        if turning_in_place and m.clearance > 0.0:
+            return m, None  # the envelope is the same at any angle: its clearance stands
         if mate.turn:
             c, sign = cn.axial_offset(mate, m.base_from_snap)
             u_p = sp.scale(mate.base_dirs[0], sign)
@@ -955,12 +963,14 @@ def frame_record(scene: Scene, state: WorldState, inputs: TrackerFrame,
     if scene.base is not None and state.base_pose is not None:
         base = PartSnapshot(scene.base.name, Mode.INHAND.value, state.base_pose.position,
                             state.base_pose.rotation, sp.ZERO3, sp.ZERO3)
-    if previous is None or previous[0].awake is None or state.awake is None:
+    prev_awake = previous[0].awake_parts() if previous is not None else None
+    awake = state.awake_parts()
+    if prev_awake is None or awake is None:
         return FrameRecord(inputs, base, tuple(snapshot(p) for p in state.parts), events)
     prev_state, prev_record = previous
     snaps = list(prev_record.parts)
     parts, prev_parts = state.parts, prev_state.parts
-    for index in set(prev_state.awake).union(state.awake):
+    for index in set(prev_awake).union(awake):
         if parts[index] is not prev_parts[index]:
             snaps[index] = snapshot(parts[index])
     return FrameRecord(inputs, base, tuple(snaps), events)
