@@ -35,11 +35,18 @@ GOLDENS = Path(__file__).resolve().parents[2] / "recordings"
 
 
 def _best(fn, repeats: int) -> float:
-    best = float("inf")
+    return _interleaved([fn], repeats)[0]
+
+
+def _interleaved(fns, repeats: int) -> list[float]:
+    """The least time of each function over ``repeats`` rounds, the functions taking turns
+    within each round: what is compared is measured under the same load."""
+    best = [float("inf")] * len(fns)
     for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
+        for i, fn in enumerate(fns):
+            t0 = time.perf_counter()
+            fn()
+            best[i] = min(best[i], time.perf_counter() - t0)
     return best
 
 
@@ -53,13 +60,12 @@ def _end_to_end(name: str, session, work: Path, repeats: int) -> dict:
     summary = replay(Recording(path))
     if not summary.match:
         raise RuntimeError(f"{name}: the replay diverged: {summary.first_divergence}")
-    t_replay = _best(lambda: replay(Recording(path)), repeats)
-    t_read = _best(lambda: read_and_decode(path), repeats)
 
     def setup():
         scene = Recording(path).session.build_scene()
         CollisionWorld(scene)
-    t_setup = _best(setup, repeats)
+    t_replay, t_read, t_setup = _interleaved(
+        [lambda: replay(Recording(path)), lambda: read_and_decode(path), setup], repeats)
     sim_s = summary.duration_s + 1.0 / 60.0
     return {"table": "end_to_end", "session": name, "frames": summary.frames,
             "sim_s": round(sim_s, 3), "parts": len(summary.parts),
@@ -106,27 +112,30 @@ def _memory(short: bool, work: Path) -> list[dict]:
     return rows
 
 
-def _simulate_only(session, repeats: int) -> tuple[float, int]:
-    scene = session.build_scene()
-    frames = list(session.tracker_frames())
-
-    def run():
-        for _ in simulate(scene, frames, collision=CollisionWorld(scene)):
-            pass
-    return _best(run, repeats), len(frames)
-
-
 def _static_parts(short: bool, work: Path, repeats: int) -> list[dict]:
-    rows = []
+    """The moving part alone and among 200 resting ones, timed in turn, round by round."""
     duration = 10.0 if short else 60.0
+    rows, runs = [], []
     for static in (0, 200):
         doc = three_part_session(duration, static_parts=static, gear=False, box=False,
                                  name=f"one_moving_{static}_resting")
         session = _session(doc)
-        t_sim, frames = _simulate_only(session, repeats)
-        row = _end_to_end(doc["name"], session, work, repeats)
-        row.update(table="static_parts", resting_parts=static, simulate_s=t_sim)
-        rows.append(row)
+        rows.append(_end_to_end(doc["name"], session, work, 1))
+        scene = session.build_scene()
+        frames = list(session.tracker_frames())
+        path = work / f"{doc['name']}.mcap"
+
+        def simulate_only(scene=scene, frames=frames):
+            for _ in simulate(scene, frames, collision=CollisionWorld(scene)):
+                pass
+        runs += [simulate_only, lambda path=path: replay(Recording(path))]
+    sim_alone, replay_alone, sim_crowd, replay_crowd = _interleaved(runs, max(repeats, 3))
+    for row, static, t_sim, t_replay in ((rows[0], 0, sim_alone, replay_alone),
+                                         (rows[1], 200, sim_crowd, replay_crowd)):
+        row.update(table="static_parts", resting_parts=static, simulate_s=t_sim,
+                   replay_s=t_replay, replay_over_read=t_replay / row["read_decode_s"],
+                   x_real_time=row["sim_s"] / t_replay,
+                   us_per_frame=t_replay / row["frames"] * 1e6)
     return rows
 
 
