@@ -49,6 +49,8 @@ def nudge_pose(src: Path, dst: Path, *, frame: int, axis: int, delta: float) -> 
     def edit(topic: str, index: int, data: bytes) -> bytes:
         if topic == "/parts" and index == frame:
             msg = json.loads(data)
+            # A "changed" frame lists only parts that moved: pick a frame where one did.
+            assert msg["parts"], f"no part is listed at frame {frame}: pick another"
             msg["parts"][0]["position"][axis] += delta
             return json.dumps(msg, sort_keys=True, separators=(",", ":")).encode()
         return data

@@ -30,9 +30,9 @@ def test_drop_on_table_in_numbers():
 def test_counts_match_the_recorded_events(golden):
     recording = Recording(golden)
     summary = replay(recording).to_dict()
-    from vade_replay.replay import recorded_record
+    from vade_replay.replay import recorded_records
 
-    events = [e for f in recording.frames() for e in recorded_record(f).events]
+    events = [e for f in recorded_records(recording) for e in f.events]
     for name, stats in summary["analysis"]["parts"].items():
         mine = [e for e in events if e.part == name]
         assert stats["grabs"] == sum(e.kind == "PartGrabbed" for e in mine)

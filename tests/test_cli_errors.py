@@ -249,13 +249,13 @@ def test_many_recordings_at_once(tmp_path):
     assert result.returncode == 0
     assert [line.split(": ")[1] for line in result.stdout.splitlines()] == ["match", "match"]
     bad = tmp_path / "bad.mcap"
-    nudge_pose(RECORDINGS / "drop_on_table.mcap", bad, frame=7, axis=1, delta=1e-9)
+    nudge_pose(RECORDINGS / "drop_on_table.mcap", bad, frame=60, axis=1, delta=1e-9)
     missing = str(tmp_path / "missing.mcap")
     result = run_cli("vade-replay", good[0], str(bad), "--json")
     assert result.returncode == 1
     summaries = json.loads(result.stdout)
     assert [s["match"] for s in summaries] == [True, False]
-    assert summaries[1]["first_divergence"]["frame"] == 7
+    assert summaries[1]["first_divergence"]["frame"] == 60
     result = run_cli("vade-replay", str(bad), missing, good[1])
     assert result.returncode == 2  # the worst: an unusable file
     assert "missing.mcap" in result.stderr and "DIVERGED" in result.stdout

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 from mcap.reader import make_reader
 
@@ -42,3 +43,38 @@ def test_log_time_is_simulated_nanoseconds_in_frame_order():
     assert times == sorted(times) and times[0] == 0
     assert sequences == list(range(len(sequences)))
     assert Recording(RECORDINGS / "drop_on_table.mcap").frame_count == len(times) == 151
+
+
+LEGACY = Path(__file__).resolve().parent / "data" / "legacy_full_drop_on_table.mcap"
+
+
+def test_new_recordings_list_only_the_parts_that_changed():
+    from vade_replay import codec
+    recording = Recording(RECORDINGS / "drop_on_table.mcap")
+    assert recording.parts_encoding == codec.PARTS_CHANGED
+    listed = [json.loads(d)["parts"] for f in recording.frames() for t, d in f.derived
+              if t == codec.PARTS_TOPIC]
+    # The peg rests until it is grabbed: frames before that list nothing, but the first and
+    # the first of each second list it.
+    assert listed[0] and listed[60] and listed[120] and not listed[7]
+
+
+def test_a_recording_in_the_older_full_encoding_still_replays_and_reads():
+    """A study's files from before the ``changed`` encoding: replayed with the encoding
+    they were written in, read back to the same states as their re-recording."""
+    from vade_replay import codec
+    from vade_replay.replay import recorded_records, replay
+    legacy = Recording(LEGACY)
+    assert legacy.parts_encoding == codec.PARTS_FULL
+    assert replay(legacy).match
+    now = Recording(RECORDINGS / "drop_on_table.mcap")
+    assert [(r.frame, r.parts, r.events) for r in recorded_records(legacy)] == \
+        [(r.frame, r.parts, r.events) for r in recorded_records(now)]
+
+
+def test_a_replay_written_out_keeps_its_sources_encoding(tmp_path):
+    from vade_replay import codec
+    from vade_replay.replay import replay
+    out = tmp_path / "again.mcap"
+    replay(Recording(LEGACY), out=out)
+    assert Recording(out).parts_encoding == codec.PARTS_FULL and replay(Recording(out)).match

@@ -10,15 +10,15 @@ from conftest import RECORDINGS, run_cli  # noqa: E402
 from mcap_edit import nudge_pose  # noqa: E402
 from test_view import read_rrd, rows  # noqa: E402
 from vade_replay.recording import Recording  # noqa: E402
-from vade_replay.replay import recorded_record  # noqa: E402
+from vade_replay.replay import recorded_records  # noqa: E402
 
 
 def _transitions(path):
     out = {}
-    for frame in Recording(path).frames():
-        for event in recorded_record(frame).events:
+    for frame in recorded_records(Recording(path)):
+        for event in frame.events:
             if event.kind == "ModeChanged":
-                out.setdefault(event.part, []).append((frame.inputs.frame, event.to_mode))
+                out.setdefault(event.part, []).append((frame.frame, event.to_mode))
     return out
 
 

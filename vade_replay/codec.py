@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 
 from . import events as ev
 from .errors import RecordingError
@@ -161,10 +162,39 @@ def encode_foxglove(record: FrameRecord) -> dict:
         for s in items]}
 
 
-def derived_messages(record: FrameRecord) -> list[tuple[str, bytes]]:
-    """Every derived message of a frame, in the order they are written."""
-    out = [(PARTS_TOPIC, dumps(encode_parts(record))),
-           (FOXGLOVE_TOPIC, dumps(encode_foxglove(record)))]
+PARTS_FULL, PARTS_CHANGED = "full", "changed"
+PARTS_ENCODINGS = (PARTS_FULL, PARTS_CHANGED)
+
+
+def keyframe(time_ns: int, previous_time_ns: int | None) -> bool:
+    """Whether a ``changed``-encoded frame lists every part: the first frame, and the first
+    of each simulated second (so a reader that seeks finds a whole state within a second)."""
+    return previous_time_ns is None or time_ns // 10**9 != previous_time_ns // 10**9
+
+
+def derived_messages(record: FrameRecord, *, parts: str = PARTS_FULL,
+                     previous_parts: tuple | None = None,
+                     previous_time_ns: int | None = None) -> list[tuple[str, bytes]]:
+    """Every derived message of a frame, in the order they are written.
+
+    ``parts="full"`` (recordings made before the ``changed`` encoding): /parts and the
+    transforms list every part every frame. ``parts="changed"``: they list the base and
+    only the parts whose snapshot differs from the previous frame's (``previous_parts``,
+    at ``previous_time_ns``), with ``"complete": true`` and every part on a key frame
+    (``keyframe``); a reader carries the others forward (``decode_parts``).
+    """
+    if parts == PARTS_CHANGED:
+        complete = previous_parts is None or keyframe(record.time_ns, previous_time_ns) \
+            or len(previous_parts) != len(record.parts)
+        if not complete:
+            listed = tuple(p for p, q in zip(record.parts, previous_parts) if p != q)
+            record = replace(record, parts=listed)
+        doc = encode_parts(record)
+        doc["complete"] = complete
+        out = [(PARTS_TOPIC, dumps(doc)), (FOXGLOVE_TOPIC, dumps(encode_foxglove(record)))]
+    else:
+        out = [(PARTS_TOPIC, dumps(encode_parts(record))),
+               (FOXGLOVE_TOPIC, dumps(encode_foxglove(record)))]
     for event in record.events:
         out.append((EVENT_TOPIC_PREFIX + event.kind, dumps(ev.to_dict(event))))
     return out
@@ -184,13 +214,29 @@ class FrameEncoder:
     its errors.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, parts: str = PARTS_FULL) -> None:
+        if parts not in PARTS_ENCODINGS:
+            raise ValueError(f"parts encoding must be one of {PARTS_ENCODINGS}")
+        self.parts = parts
+        self._time_ns: int | None = None  # the last frame's time (key frames)
+        self._last: list = []             # the last frame's snapshots, base first
         self._names: dict[str, str] = {}
         self._items: list = []       # the last frame's snapshots: base (if any) first
         self._texts: list[str] = []  # each item's /parts object
         self._heads: list[str] = []  # each item's transform up to its timestamp
         self._tails: list[str] = []  # and after it
         self._glue: list[str] = []   # heads[0], tails[0] + "," + heads[1], ..., tails[-1]
+
+    def _fallback(self, record: FrameRecord, previous_items: list,
+                  previous_time: int | None) -> list[tuple[str, bytes]]:
+        """The reference encoder, for what the fast path does not cover."""
+        if self.parts == PARTS_FULL:
+            return derived_messages(record)
+        first = 0 if record.base is None else 1
+        previous = tuple(previous_items[first:]) \
+            if len(previous_items) == len(record.parts) + first else None
+        return derived_messages(record, parts=PARTS_CHANGED, previous_parts=previous,
+                                previous_time_ns=previous_time)
 
     def _quoted(self, text: str) -> str:
         quoted = self._names.get(text)
@@ -223,40 +269,60 @@ class FrameEncoder:
         frame, t = record.frame, record.time_ns
         items = record.parts if record.base is None else (record.base, *record.parts)
         n = len(items)
+        # The last frame's snapshots and time decide what a ``changed`` frame lists;
+        # ``self._items`` only says which cached texts are still good.
+        previous_items, self._last = self._last, list(items)
+        previous_time, self._time_ns = self._time_ns, t if type(t) is int else None
         if type(frame) is not int or type(t) is not int or n == 0:
             self._items = []
-            return derived_messages(record)
+            return self._fallback(record, previous_items, previous_time)
         if len(self._items) != n:
             self._items = [None] * n
             self._texts, self._heads, self._tails = [""] * n, [""] * n, [""] * n
             self._glue = [""] * (n + 1)
         texts, heads, tails, glue = self._texts, self._heads, self._tails, self._glue
-        for i in changed_indices(items, self._items):
+        changed = changed_indices(items, self._items)
+        for i in changed:
             fragments = self._fragments(items[i])
             if fragments is None:
                 self._items = []
-                return derived_messages(record)
+                return self._fallback(record, previous_items, previous_time)
             texts[i], heads[i], tails[i] = fragments
             glue[i] = heads[i] if i == 0 else tails[i - 1] + "," + heads[i]
             glue[i + 1] = tails[i] if i == n - 1 else tails[i] + "," + heads[i + 1]
         self._items = list(items)
         sec, nsec = divmod(t, 10**9)
         stamp = f'{{"nsec":{nsec},"sec":{sec}}}'
-        if record.base is None:
-            head = '{"base":null,"frame":'
-            parts_text = ",".join(texts)
+        first = 0 if record.base is None else 1
+        base = "null" if record.base is None else texts[0]
+        if self.parts == PARTS_CHANGED and len(previous_items) == n \
+                and not keyframe(t, previous_time):
+            # Only what differs from last frame (by value: a new snapshot equal to the old
+            # one is not listed), and the base, whose transform is always written.
+            listed = [i for i in changed if i >= first and items[i] != previous_items[i]]
+            parts_text = ",".join([texts[i] for i in listed])
+            shown = ([0] if first else []) + listed
+            transforms = ",".join([heads[i] + stamp + tails[i] for i in shown])
+            out = [(PARTS_TOPIC, (f'{{"base":{base},"complete":false,"frame":{frame},'
+                                  f'"parts":[{parts_text}],"time_ns":{t}}}').encode()),
+                   (FOXGLOVE_TOPIC, ('{"transforms":[' + transforms + "]}").encode())]
         else:
-            head = '{"base":' + texts[0] + ',"frame":'
-            parts_text = ",".join(texts[1:])
-        out = [(PARTS_TOPIC, f'{head}{frame},"parts":[{parts_text}],"time_ns":{t}}}'.encode()),
-               (FOXGLOVE_TOPIC, ('{"transforms":[' + stamp.join(glue) + "]}").encode())]
+            parts_text = ",".join(texts[first:])
+            complete = ',"complete":true' if self.parts == PARTS_CHANGED else ""
+            out = [(PARTS_TOPIC, (f'{{"base":{base}{complete},"frame":{frame},'
+                                  f'"parts":[{parts_text}],"time_ns":{t}}}').encode()),
+                   (FOXGLOVE_TOPIC, ('{"transforms":[' + stamp.join(glue) + "]}").encode())]
         for event in record.events:
             out.append((EVENT_TOPIC_PREFIX + event.kind, dumps(ev.to_dict(event))))
         return out
 
 
-def decode_parts(data: bytes, *, frame: int | None = None) -> tuple[PartSnapshot | None,
-                                                                    tuple[PartSnapshot, ...]]:
+def decode_parts(data: bytes, *, frame: int | None = None,
+                 previous: tuple[PartSnapshot | None, tuple[PartSnapshot, ...]] | None = None
+                 ) -> tuple[PartSnapshot | None, tuple[PartSnapshot, ...]]:
+    """The base and every part after a frame. A ``changed`` frame (``"complete": false``)
+    lists only what moved: the others are carried forward from ``previous`` (the decoded
+    frame before), in its order."""
     value = loads(data, topic=PARTS_TOPIC, frame=frame)
 
     def snap(d: dict) -> PartSnapshot:
@@ -264,10 +330,21 @@ def decode_parts(data: bytes, *, frame: int | None = None) -> tuple[PartSnapshot
                             tuple(d["linear_velocity"]), tuple(d["angular_velocity"]))
     try:
         base = snap(value["base"]) if value.get("base") else None
-        return base, tuple(snap(p) for p in value["parts"])
+        listed = tuple(snap(p) for p in value["parts"])
     except (KeyError, TypeError) as exc:
         raise RecordingError(f"malformed part poses: {exc}", field=PARTS_TOPIC, frame=frame) \
             from None
+    if value.get("complete", True) is not False:
+        return base, listed
+    if previous is None:
+        raise RecordingError("a frame of changes with no complete frame before it",
+                             field=PARTS_TOPIC, frame=frame)
+    changed = {p.name: p for p in listed}
+    parts = tuple(changed.pop(p.name, p) for p in previous[1])
+    if changed:
+        raise RecordingError(f"changes for parts the frame before does not have: "
+                             f"{sorted(changed)}", field=PARTS_TOPIC, frame=frame)
+    return base, parts
 
 
 def decode_event(topic: str, data: bytes, *, frame: int | None = None) -> ev.Event:

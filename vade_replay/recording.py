@@ -35,6 +35,7 @@ PROFILE = "vade"
 SESSION_ATTACHMENT = "session.json"
 FILE_ATTACHMENT_PREFIX = "files/"
 CHUNK_SECONDS_NS = 10**9
+ENCODING_METADATA = "encoding"
 # What a damaged file raises from mcap and its zstd chunks (a flipped byte in a compressed
 # chunk is a ZstdError, not an McapError).
 _READ_ERRORS = (McapError, ZstdError, OSError, EOFError, ValueError, struct.error, KeyError)
@@ -75,7 +76,8 @@ class RecordingWriter:
     """Writes one session: attachments and metadata first, then frame after frame."""
 
     def __init__(self, path: str | Path, session: Session, scene: Scene, *,
-                 extra_metadata: dict[str, str] | None = None) -> None:
+                 extra_metadata: dict[str, str] | None = None,
+                 parts_encoding: str = codec.PARTS_CHANGED) -> None:
         self.path = Path(path)
         try:
             self._stream = open(self.path, "wb")
@@ -100,7 +102,10 @@ class RecordingWriter:
         self._writer.add_metadata("physics", {k: json.dumps(v) for k, v in
                                               asdict(scene.physics).items()})
         self._writer.add_metadata("session", {"name": session.name, **(extra_metadata or {})})
-        self._encoder = codec.FrameEncoder()
+        # How /parts and the transforms are written (codec.derived_messages): a file without
+        # this record is from before the ``changed`` encoding and lists every part.
+        self._writer.add_metadata(ENCODING_METADATA, {"parts": parts_encoding})
+        self._encoder = codec.FrameEncoder(parts_encoding)
         self._sequence = 0
         self._last_flush_ns: int | None = None
         self.frames = 0
@@ -191,6 +196,12 @@ class Recording:
         self.session = parse(attachments[SESSION_ATTACHMENT], files,
                              source=f"{self.path}:{SESSION_ATTACHMENT}")
         self.frame_count = self._frame_count()
+        self.parts_encoding = self.metadata.get(ENCODING_METADATA, {}).get(
+            "parts", codec.PARTS_FULL)
+        if self.parts_encoding not in codec.PARTS_ENCODINGS:
+            raise RecordingError(f"unknown parts encoding {self.parts_encoding!r} (this version "
+                                 f"reads {', '.join(codec.PARTS_ENCODINGS)})",
+                                 file=str(self.path), field="metadata encoding.parts")
 
     def _frame_count(self) -> int | None:
         """Frames = tracker messages, from the summary when the file was closed properly."""

@@ -280,7 +280,7 @@ def replay_frames(recording: Recording, scene: Scene, *, check: bool = True,
             cache.append(recorded)
             yield recorded.inputs
 
-    encoder = codec.FrameEncoder()
+    encoder = codec.FrameEncoder(recording.parts_encoding)
     for replayed in simulate(scene, inputs(), collision=collision):
         recorded = cache.pop()
         derived = encoder.derived_messages(replayed)
@@ -318,7 +318,8 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
         ensure_writable(out)
         # A what-if's recording embeds the changed session, so that it replays itself.
         writer = RecordingWriter(Path(out), session, scene,
-                                 extra_metadata={"replayed_from": str(recording.path)})
+                                 extra_metadata={"replayed_from": str(recording.path)},
+                                 parts_encoding=recording.parts_encoding)
     first_time = None
     try:
         for item in _with_file(replay_frames(recording, scene, collision=collision),
@@ -345,13 +346,24 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     return summary
 
 
-def recorded_record(frame: RecordedFrame) -> FrameRecord:
-    """A recorded frame decoded into the shape the review consumes."""
+def recorded_record(frame: RecordedFrame, previous: FrameRecord | None = None) -> FrameRecord:
+    """A recorded frame decoded into the shape the review consumes. ``previous`` is the
+    frame before, decoded: a ``changed`` frame carries its unlisted parts forward."""
     base, parts = None, ()
     events = []
     for topic, data in frame.derived:
         if topic == codec.PARTS_TOPIC:
-            base, parts = codec.decode_parts(data, frame=frame.inputs.frame)
+            base, parts = codec.decode_parts(
+                data, frame=frame.inputs.frame,
+                previous=(previous.base, previous.parts) if previous is not None else None)
         elif topic.startswith(codec.EVENT_TOPIC_PREFIX):
             events.append(codec.decode_event(topic, data, frame=frame.inputs.frame))
     return replace(FrameRecord(frame.inputs, base, parts), events=tuple(events))
+
+
+def recorded_records(recording: Recording) -> Iterator[FrameRecord]:
+    """Every recorded frame, decoded, each onto the one before."""
+    previous = None
+    for frame in recording.frames():
+        previous = recorded_record(frame, previous)
+        yield previous

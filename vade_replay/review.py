@@ -11,7 +11,7 @@ from typing import Iterator
 
 from .frames import FrameRecord
 from .recording import Recording
-from .replay import apply_overrides, recorded_record, simulate
+from .replay import apply_overrides, recorded_records, simulate
 from .scene import Body, Scene
 from .view import MeshInfo, SceneInfo, write_review
 
@@ -32,8 +32,7 @@ def scene_info(scene: Scene) -> SceneInfo:
 
 
 def _recorded(recording: Recording) -> Iterator[FrameRecord]:
-    for frame in recording.frames():
-        yield recorded_record(frame)
+    yield from recorded_records(recording)
 
 
 def write_recording_review(recording: Recording, out: str | Path, *,
