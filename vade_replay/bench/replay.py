@@ -165,7 +165,7 @@ def run(short: bool, out_dir: Path, log=None) -> tuple[list[dict], list[dict]]:
         log(f"replay: three parts, {seconds:g} s")
         synthetic = _end_to_end(f"three_parts_{seconds:g}s",
                                 _session(three_part_session(seconds)), work,
-                                1 if not short else repeats)
+                                2 if not short else repeats)
         rows.append(synthetic)
         log("replay: memory")
         memory = _memory(short, work)
