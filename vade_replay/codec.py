@@ -221,7 +221,7 @@ class FrameEncoder:
         self._time_ns: int | None = None  # the last frame's time (key frames)
         self._last: list = []             # the last frame's snapshots, base first
         self._names: dict[str, str] = {}
-        self._items: list = []       # the last frame's snapshots: base (if any) first
+        self._items: list = []       # the snapshots whose texts are cached: base first
         self._texts: list[str] = []  # each item's /parts object
         self._heads: list[str] = []  # each item's transform up to its timestamp
         self._tails: list[str] = []  # and after it
@@ -290,7 +290,7 @@ class FrameEncoder:
             texts[i], heads[i], tails[i] = fragments
             glue[i] = heads[i] if i == 0 else tails[i - 1] + "," + heads[i]
             glue[i + 1] = tails[i] if i == n - 1 else tails[i] + "," + heads[i + 1]
-        self._items = list(items)
+        self._items = self._last  # neither list is changed in place: one copy serves
         sec, nsec = divmod(t, 10**9)
         stamp = f'{{"nsec":{nsec},"sec":{sec}}}'
         first = 0 if record.base is None else 1
