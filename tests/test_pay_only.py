@@ -80,7 +80,7 @@ def test_a_resting_part_among_many_can_be_grabbed():
 def test_a_slide_held_by_static_friction_is_not_integrated_and_changes_nothing(monkeypatch):
     session = load(RECORDINGS / "gear_pendulum.json")
     fast, fast_stats = _run(session)
-    monkeypatch.setattr(step_module, "_static_hold", lambda *a: False)
+    monkeypatch.setattr(step_module, "_STATIC_HOLD", False)
     slow, slow_stats = _run(session)
     assert _values(fast) == _values(slow)
     assert fast_stats["closed_form_evals"] == 0 < slow_stats["closed_form_evals"]

@@ -59,7 +59,7 @@ def encode_tracker(frame: TrackerFrame) -> dict:
 def _vec(value, n: int, *, topic: str, field: str, frame: int | None) -> tuple:
     # Fast path: what this encoder writes (floats); the sum is finite only if every term is.
     if type(value) is list and len(value) == n and all(type(v) is float for v in value) \
-            and math.isfinite(sum(value)) and max(map(abs, value)) <= MAX_ABS_POSITION_M:
+            and math.isfinite(sum(value, 0.0)) and max(map(abs, value)) <= MAX_ABS_POSITION_M:
         return tuple(value)
     if not (isinstance(value, list) and len(value) == n and
             all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
@@ -71,6 +71,8 @@ def _vec(value, n: int, *, topic: str, field: str, frame: int | None) -> tuple:
 
 
 _FLOAT_ONLY = {float}
+# ``sum(values, 0.0)``: of a list of unknown items mypy infers an int, and the compiled
+# module (vade_replay/native.py) would check for one; the start makes it a float.
 
 
 def _decode_devices_fast(devices: dict) -> tuple | None:
@@ -92,7 +94,7 @@ def _decode_devices_fast(devices: dict) -> tuple | None:
         values += rot
         rows.append((name, DeviceSample(tuple(pos), tuple(rot), grip)))
     # Every number a float; the sum is finite only if every term is.
-    if values and not (set(map(type, values)) == _FLOAT_ONLY and math.isfinite(sum(values))
+    if values and not (set(map(type, values)) == _FLOAT_ONLY and math.isfinite(sum(values, 0.0))
                        and max(map(abs, values)) <= MAX_ABS_POSITION_M):
         return None
     return tuple(rows)
@@ -108,10 +110,10 @@ def decode_tracker(data: bytes) -> TrackerFrame:
     devices = value.get("devices")
     if not isinstance(devices, dict):
         raise RecordingError("tracker message lacks devices", field=TRACKER_TOPIC, frame=frame)
-    samples = _decode_devices_fast(devices)
-    if samples is not None:
-        return TrackerFrame(frame, value["time_ns"], samples)
-    samples = []
+    fast = _decode_devices_fast(devices)
+    if fast is not None:
+        return TrackerFrame(frame, value["time_ns"], fast)
+    samples: list[tuple[str, DeviceSample]] = []
     for name in sorted(devices):
         d = devices[name]
         # Fast path: what this encoder writes (3 + 4 finite floats, a bool or null grip).
@@ -120,7 +122,7 @@ def decode_tracker(data: bytes) -> TrackerFrame:
             if type(pos) is list and type(rot) is list and len(pos) == 3 and len(rot) == 4 \
                     and (grip is None or grip is True or grip is False):
                 values = pos + rot
-                if set(map(type, values)) == _FLOAT_ONLY and math.isfinite(sum(values)) \
+                if set(map(type, values)) == _FLOAT_ONLY and math.isfinite(sum(values, 0.0)) \
                         and max(map(abs, values)) <= MAX_ABS_POSITION_M:
                     samples.append((name, DeviceSample(tuple(pos), tuple(rot), grip)))
                     continue
@@ -186,7 +188,7 @@ def derived_messages(record: FrameRecord, *, parts: str = PARTS_FULL,
     if parts == PARTS_CHANGED:
         complete = previous_parts is None or keyframe(record.time_ns, previous_time_ns) \
             or len(previous_parts) != len(record.parts)
-        if not complete:
+        if not complete and previous_parts is not None:
             listed = tuple(p for p, q in zip(record.parts, previous_parts) if p != q)
             record = replace(record, parts=listed)
         doc = encode_parts(record)

@@ -155,7 +155,7 @@ def build_mate(*, name: str, kind: str, base_points, base_dirs, part_points, par
     part_dirs = tuple(sp.normalize(d) for d in part_dirs)
     if kind == "axis":
         u_b, u_p = base_dirs[0], part_dirs[0]
-        slide_dirs = (u_b,) if slide else ()
+        slide_dirs: tuple[sp.Vec3, ...] = (u_b,) if slide else ()
         part_feature = axis_feature_faces(part_vertices, part_faces, part_points[0], u_p,
                                           radius, geometry_tol)
         base_feature = axis_feature_faces(base_vertices, base_faces, base_points[0], u_b,

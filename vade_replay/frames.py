@@ -8,6 +8,7 @@ consumer (replay check, rerun review, analysis). They hold plain Python values
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from collections.abc import Sequence
 from itertools import compress
 from operator import is_not
 
@@ -72,7 +73,7 @@ class FrameRecord:
         return self.inputs.time_ns
 
 
-def changed_indices(new: tuple, old: tuple | None) -> list[int]:
+def changed_indices(new: Sequence, old: Sequence | None) -> list[int]:
     """Indices at which ``new`` holds another object than ``old`` (all, if the lengths
     differ). Snapshots of parts nothing moved are the same objects frame after frame
     (``step.frame_record``), so consumers look only at these; the scan runs in C."""

@@ -10,10 +10,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from typing import cast
 
 from . import constraints as cn
 from . import spatial as sp
 from .collision import CheckMode, CollisionWorld
+from .constraints import Assembly
 from .dynamics import free, onbase, velocity
 from .events import ContactMade, Event, GrabRefused, ModeChanged, PartGrabbed, PartReleased
 from .frames import FrameRecord, PartSnapshot, TrackerFrame
@@ -153,7 +155,7 @@ def _releases(f: _Frame, state: WorldState) -> None:
             continue
         for index in f.awake:
             part = f.parts[index]
-            if part.mode is Mode.INHAND and part.motion.hand == hand:  # type: ignore[union-attr]
+            if part.mode is Mode.INHAND and cast(Held, part.motion).hand == hand:
                 _release(f, index, hand)
 
 
@@ -492,6 +494,7 @@ def _time_of_contact(f: _Frame, body: Body, start: free.Flight, near: tuple[int,
 
 _CA_BASE_ITERATIONS = 4096
 _INSIDE_ENVELOPE = True  # the shortcut of _sweep for turning in place (off in a test)
+_STATIC_HOLD = True  # the shortcut of _slide_and_turn for a held slide (off in a test)
 # Allowance (in tolerances) for fcl's distance from the envelope, a cylinder primitive
 # (GJK), so that the envelope's clearance is a safe lower bound of the part's distance.
 _ENVELOPE_MARGIN = 0.01
@@ -571,7 +574,7 @@ def _place(f: _Frame, index: int, cause: Cause, *, hand: str | None = None) -> N
     if hand is not None:
         f.events.append(PartReleased(f.inputs.frame, part.name, cause.value, hand,
                                      part.linear_velocity, part.angular_velocity))
-    pose = f.base_pose.compose(final)  # type: ignore[union-attr]
+    pose = f.base_pose.compose(cast(sp.Pose, final))  # type: ignore[union-attr]
     f.change_mode(index, PartState(part.name, Mode.PLACED, pose), cause)
 
 
@@ -649,8 +652,9 @@ def _carry_with_base(f: _Frame) -> None:
             if isinstance(m, Resting):
                 rel = m.base_from_part
             else:
-                mate = f.scene.parts[index].assembly.mates[m.mate]  # type: ignore[union-attr]
-                rel = cn.relative_pose(mate, m.base_from_snap, m.slide, m.angle)
+                on = cast(OnBase, m)
+                mate = f.scene.parts[index].assembly.mates[on.mate]  # type: ignore[union-attr]
+                rel = cn.relative_pose(mate, on.base_from_snap, on.slide, on.angle)
             f.parts[index] = part.moved(f.base_pose.compose(rel), sp.ZERO3, sp.ZERO3, m)
         elif part.mode is Mode.PLACED:
             final = f.scene.parts[index].assembly.final_pose  # type: ignore[union-attr]
@@ -721,7 +725,8 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
         q0 = (f.base_prev or f.base_pose).rotation  # type: ignore[union-attr]
         q1 = f.base_pose.rotation  # type: ignore[union-attr]
         turn_path = onbase.GravityPath(physics.gravity_rotation, q0, q1) if mate.turn else None
-        if mate.slide_dirs and not _static_hold(mate, m, physics, turn_path, q0, q1):
+        if mate.slide_dirs and not (_STATIC_HOLD and _static_hold(mate, m, physics, turn_path,
+                                                                 q0, q1)):
             path = onbase.GravityPath(physics.gravity_slide, q0, q1)
             slide_steps = onbase.substeps(dt, physics.slide_step_s)
             f.collision.stats["closed_form_evals" if physics.slide_integrator == "analytic"
@@ -776,7 +781,8 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
         f.events.append(ContactMade(f.inputs.frame, part.name, Cause.BLOCKED.value,
                                     f.scene.base.name,  # type: ignore[union-attr]
                                     f.t_prev_ns + int(lam * (f.t_ns - f.t_prev_ns))))  # type: ignore[possibly-undefined]
-    if body.assembly.final_pose is not None and cn.at_final_pose(body.assembly, rel):  # type: ignore[union-attr]
+    assembly = cast(Assembly, body.assembly)
+    if assembly.final_pose is not None and cn.at_final_pose(assembly, rel):
         _place(f, index, Cause.REACHED_FINAL_POSE)
         return
     v_rel, w_rel = _relative_rates(body, mate, new, new.slide_rate, new.angle, new.angle_rate)
@@ -965,7 +971,7 @@ def frame_record(scene: Scene, state: WorldState, inputs: TrackerFrame,
                             state.base_pose.rotation, sp.ZERO3, sp.ZERO3)
     prev_awake = previous[0].awake_parts() if previous is not None else None
     awake = state.awake_parts()
-    if prev_awake is None or awake is None:
+    if previous is None or prev_awake is None or awake is None:
         return FrameRecord(inputs, base, tuple(snapshot(p) for p in state.parts), events)
     prev_state, prev_record = previous
     snaps = list(prev_record.parts)
