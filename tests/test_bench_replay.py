@@ -27,14 +27,25 @@ def test_files_hold_every_measurement(short_run):
     with open(out / "replay.csv", newline="") as f:
         assert len(list(csv.DictReader(f))) == len(doc["rows"])
     tables = {row["table"] for row in doc["rows"]}
-    assert tables == {"end_to_end", "memory", "static_parts"}
+    assert tables == {"end_to_end", "builds", "memory", "static_parts"}
     assert [t["target"] for t in doc["targets"]][:3] == [
         "replay with checking / plain read-and-decode (worst session)",
         "real-time factor, 60 Hz three-part session (three_parts_30s)",
         "peak memory, three parts, 2 min / three parts, 0.5 min"]
     for row in doc["rows"]:
-        if row["table"] != "memory":
+        if row["table"] not in ("memory", "builds"):
             assert row["replay_s"] > 0 and row["read_decode_s"] > 0 and row["frames"] > 100
+
+
+def test_both_builds_replay_the_same_session(short_run):
+    """The installed build against the Python sources, each in a fresh process."""
+    from vade_replay import native
+    _, doc = short_run
+    installed, pure = [r for r in doc["rows"] if r["table"] == "builds"]
+    assert installed["build"] == native.describe()
+    assert pure["build"] == "pure Python (VADE_REPLAY_PURE=1)" and pure["vs_pure"] == 1.0
+    assert installed["frames"] == pure["frames"] > 100
+    assert installed["replay_s"] > 0 and pure["replay_s"] > 0
 
 
 def test_replay_streams_memory_does_not_grow_with_length(short_run):

@@ -18,12 +18,14 @@ a shared machine cancels as far as it can. Times are the best of a few repeats.
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
+from .. import native
 from ..collision import CollisionWorld
 from ..recording import Recording, read_and_decode
 from ..replay import record, replay, simulate
@@ -92,6 +94,38 @@ print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, s.frames, time.perf_co
 """
 
 
+_TIME_REPLAY = """
+import sys, time
+from vade_replay import native
+from vade_replay.recording import Recording
+from vade_replay.replay import replay
+t0 = time.perf_counter()
+s = replay(Recording(sys.argv[1]))
+assert s.match, s.first_divergence
+print(time.perf_counter() - t0, s.frames, native.describe())
+"""
+
+
+def _builds(path: Path, rounds: int) -> list[dict]:
+    """The same replay by this install and by the Python sources (``VADE_REPLAY_PURE=1``),
+    each in a fresh process, the two in turn round by round."""
+    best = {"installed": (float("inf"), 0, ""), "pure": (float("inf"), 0, "")}
+    for _ in range(rounds):
+        for build in best:
+            env = dict(os.environ)
+            env.pop(native.PURE_ENV, None)
+            if build == "pure":
+                env[native.PURE_ENV] = "1"
+            out = subprocess.run([sys.executable, "-c", _TIME_REPLAY, str(path)], env=env,
+                                 check=True, capture_output=True, text=True).stdout.split(maxsplit=2)
+            best[build] = min(best[build], (float(out[0]), int(out[1]), out[2].strip()))
+    return [{"table": "builds", "session": path.stem, "build": describe, "frames": frames,
+             "replay_s": seconds, "us_per_frame": seconds / frames * 1e6,
+             "x_real_time": frames / 60.0 / seconds,
+             "vs_pure": seconds / best["pure"][0]}
+            for seconds, frames, describe in best.values()]
+
+
 def _peak_memory(path: Path) -> tuple[float, int, float]:
     """Peak resident memory (MB) of replaying ``path`` in a fresh process."""
     out = subprocess.run([sys.executable, "-c", _PEAK, str(path)], check=True,
@@ -141,6 +175,8 @@ def _static_parts(short: bool, work: Path, repeats: int) -> list[dict]:
 
 TABLES = {"end_to_end": "Record, replay with checking, and a plain read-and-decode "
                         "(seconds; best of repeats)",
+          "builds": "The three-part session replayed by this install and by the Python "
+                    "sources (VADE_REPLAY_PURE=1), each in a fresh process",
           "memory": "Peak resident memory of a replay, each in a fresh process",
           "static_parts": "One moving part alone and among 200 resting ones"}
 
@@ -167,6 +203,8 @@ def run(short: bool, out_dir: Path, log=None) -> tuple[list[dict], list[dict]]:
                                 _session(three_part_session(seconds)), work,
                                 2 if not short else repeats)
         rows.append(synthetic)
+        log("replay: compiled and pure-Python builds")
+        rows += _builds(work / f"{synthetic['session']}.mcap", 1 if short else 3)
         log("replay: memory")
         memory = _memory(short, work)
         rows += memory
@@ -203,4 +241,5 @@ def run(short: bool, out_dir: Path, log=None) -> tuple[list[dict], list[dict]]:
 def machine() -> str:
     """One line naming the machine, for the figures' provenance."""
     m = report.machine()
-    return f"{m['cpu']}, {m['cores']} cores, Python {m['python']}, numpy {m['numpy']}"
+    return (f"{m['cpu']}, {m['cores']} cores, Python {m['python']}, numpy {m['numpy']}; "
+            f"vade_replay {m['build']}")

@@ -140,7 +140,9 @@ def machine() -> dict:
         pass
     import numpy
 
-    return {"cpu": model, "cores": os.cpu_count(), "python": platform.python_version(),
+    from .. import native
+
+    return {"build": native.describe(), "cpu": model, "cores": os.cpu_count(), "python": platform.python_version(),
             "implementation": platform.python_implementation(), "numpy": numpy.__version__,
             "system": f"{platform.system()} {platform.release()}"}
 

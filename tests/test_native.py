@@ -1,0 +1,104 @@
+"""The compiled build (vade_replay/native.py): the per-frame modules compiled by mypyc from
+their own sources must give the same bits as those sources run by CPython.
+
+Goldens were recorded by the pure-Python build and ``test_goldens`` replays them with
+whatever this install runs; here the other direction: sessions recorded by this install
+(random ones from the stress strategies, and the edge cases) replay bit for bit under
+``VADE_REPLAY_PURE=1``, and every golden does too.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from hypothesis import given
+
+import strategies as S
+from conftest import RECORDINGS, make_session
+from vade_replay import native
+from vade_replay.replay import record
+
+COMPILED = native.compiled()
+
+_REPLAY_ALL = """
+import json, sys
+from vade_replay import native
+from vade_replay.recording import Recording
+from vade_replay.replay import replay
+out = {"describe": native.describe(), "compiled": list(native.compiled()), "runs": {}}
+for path in sys.argv[1:]:
+    s = replay(Recording(path))
+    out["runs"][path] = [s.match, s.first_divergence and s.first_divergence["text"], s.frames]
+print(json.dumps(out))
+"""
+
+
+def _replay_pure(paths) -> dict:
+    env = dict(os.environ, VADE_REPLAY_PURE="1")
+    done = subprocess.run([sys.executable, "-c", _REPLAY_ALL, *map(str, paths)], env=env,
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout)
+
+
+def test_the_pure_switch_runs_the_python_sources():
+    result = _replay_pure([RECORDINGS / "drop_on_table.mcap"])
+    assert result["compiled"] == []
+    assert result["describe"] == "pure Python (VADE_REPLAY_PURE=1)"
+    assert result["runs"][str(RECORDINGS / "drop_on_table.mcap")][0] is True
+
+
+@pytest.mark.skipif(not COMPILED, reason="this install has no compiled modules "
+                                         f"({native.describe()})")
+def test_sessions_recorded_compiled_replay_bit_for_bit_in_pure_python(tmp_path):
+    docs = []
+
+    @given(S.sessions())
+    @S.examples(6, 40)
+    def collect(doc):
+        docs.append(doc)
+    collect()
+    from test_stress import _edge_sessions
+    docs += list(_edge_sessions().values())
+    paths = []
+    for i, doc in enumerate(docs):
+        path = tmp_path / f"s{i}.mcap"
+        record(make_session(doc), path)
+        paths.append(path)
+    paths += sorted(RECORDINGS.glob("*.mcap"))
+    result = _replay_pure(paths)
+    assert result["compiled"] == []
+    for path in paths:
+        match, divergence, frames = result["runs"][str(path)]
+        assert match, (path.name, divergence)
+        assert frames > 0
+
+
+def test_every_module_listed_exists_and_is_compiled_when_any_is():
+    for path in native.MODULES:
+        assert (Path(native.__file__).parents[1] / path).is_file(), path
+    assert len(COMPILED) in (0, len(native.MODULES)), COMPILED
+
+
+def test_a_module_edited_after_its_build_is_stale(tmp_path):
+    package = tmp_path / "vade_replay"
+    (package / "dynamics").mkdir(parents=True)
+    suffix = native.importlib.machinery.EXTENSION_SUFFIXES[0]
+    for path in native.MODULES:
+        (tmp_path / path).write_text("")
+        (tmp_path / (path[:-3] + suffix)).write_text("")
+    now = time.time()
+    for path in native.MODULES:
+        os.utime(tmp_path / path, (now - 100, now - 100))
+        os.utime(tmp_path / (path[:-3] + suffix), (now - 99, now - 99))
+    assert native.stale(str(tmp_path)) == []
+    os.utime(tmp_path / "vade_replay/step.py", (now, now))  # edited since
+    assert native.stale(str(tmp_path)) == ["vade_replay/step.py"]
+    (tmp_path / ("vade_replay/step" + suffix)).unlink()   # never compiled: not stale
+    assert native.stale(str(tmp_path)) == []

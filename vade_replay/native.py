@@ -1,0 +1,123 @@
+"""Which per-frame modules run compiled, and the switch back to their Python sources.
+
+``pip install`` compiles the modules in ``MODULES`` with mypyc (``setup.py``) from the very
+same Python files: one source, no second implementation to keep in step. The compiled code
+does the same floating-point operations in the same order (C doubles; FMA contraction off),
+so a recording replays bit for bit under either; ``tests/test_native.py`` replays every
+golden both ways. Where no C compiler is found, or with ``VADE_REPLAY_PURE=1`` at install
+time, nothing is compiled and the package is pure Python.
+
+``VADE_REPLAY_PURE=1`` at run time imports the Python sources even where compiled modules
+are installed: the reference the compiled build is checked against, and a way to rule the
+build out when a replay differs between two machines.
+
+This module is read by ``setup.py`` before the package is built: standard library only.
+"""
+
+from __future__ import annotations
+
+import importlib.abc
+import importlib.machinery
+import importlib.util
+import os
+import sys
+
+PACKAGE = "vade_replay"
+# The modules a frame runs through (step, its dynamics, constraints, the encoder), as paths
+# from the project root. Data classes (state, frames) and I/O stay Python.
+MODULES = (
+    "vade_replay/spatial.py",
+    "vade_replay/constraints.py",
+    "vade_replay/dynamics/free.py",
+    "vade_replay/dynamics/onbase.py",
+    "vade_replay/dynamics/velocity.py",
+    "vade_replay/step.py",
+    "vade_replay/codec.py",
+)
+PURE_ENV = "VADE_REPLAY_PURE"
+_SLACK_S = 2.0
+
+
+def module_names() -> tuple[str, ...]:
+    return tuple(path[:-3].replace("/", ".") for path in MODULES)
+
+
+def pure_requested() -> bool:
+    return os.environ.get(PURE_ENV, "") not in ("", "0")
+
+
+def compiled() -> tuple[str, ...]:
+    """The modules of ``MODULES`` that are loaded from compiled extensions (imports them)."""
+    out = []
+    for name in module_names():
+        module = importlib.import_module(name)
+        if (module.__file__ or "").endswith(tuple(importlib.machinery.EXTENSION_SUFFIXES)):
+            out.append(name)
+    return tuple(out)
+
+
+def describe() -> str:
+    """One line for summaries and benchmark tables: ``compiled 7/7`` or ``pure Python``."""
+    names = compiled()
+    if not names:
+        return "pure Python" + (f" ({PURE_ENV}=1)" if pure_requested() else "")
+    return f"compiled {len(names)}/{len(MODULES)} (mypyc)"
+
+
+def _extension(source: str) -> str | None:
+    stem = source[:-3]
+    for suffix in importlib.machinery.EXTENSION_SUFFIXES:
+        if os.path.isfile(stem + suffix):
+            return stem + suffix
+    return None
+
+
+def stale(root: str) -> list[str]:
+    """The modules whose source is newer than its compiled extension under ``root`` (the
+    folder that holds the package): edited, or checked out, since the last build. Two
+    seconds of slack: installing a wheel writes a module's files one after the other."""
+    out = []
+    for path in MODULES:
+        source = os.path.join(root, path)
+        extension = _extension(source)
+        if extension is not None and os.path.isfile(source) \
+                and os.path.getmtime(source) > os.path.getmtime(extension) + _SLACK_S:
+            out.append(path)
+    return out
+
+
+class _SourcesFirst(importlib.abc.MetaPathFinder):
+    """Finds the Python source of a module in ``MODULES`` before its compiled extension."""
+
+    def __init__(self) -> None:
+        self.names = set(module_names())
+
+    def find_spec(self, fullname, path, target=None):
+        if fullname not in self.names or not path:
+            return None
+        leaf = fullname.rpartition(".")[2]
+        for entry in path:
+            source = os.path.join(entry, leaf + ".py")
+            if os.path.isfile(source):
+                return importlib.util.spec_from_file_location(fullname, source)
+        return None
+
+
+def install_switch(package_dir: str) -> None:
+    """Called on importing the package. With ``VADE_REPLAY_PURE=1``, or when a compiled
+    module is older than its source (edited since ``pip install``), every module of
+    ``MODULES`` is imported from its source: compiled modules call each other directly, so
+    one stale module among them would still run its old compiled code."""
+    if any(isinstance(f, _SourcesFirst) for f in sys.meta_path):
+        return
+    if pure_requested():
+        sys.meta_path.insert(0, _SourcesFirst())
+        return
+    changed = stale(os.path.dirname(package_dir))
+    if changed:
+        import warnings
+        warnings.warn(f"vade_replay: {', '.join(changed)} changed since it was compiled; "
+                      "running the Python sources (slower, same results). Run "
+                      "`pip install -e .` again to compile them.", RuntimeWarning,
+                      stacklevel=2)
+        sys.meta_path.insert(0, _SourcesFirst())
