@@ -66,6 +66,7 @@ def test_sessions_recorded_compiled_replay_bit_for_bit_in_pure_python(tmp_path):
     collect()
     from test_stress import _edge_sessions
     docs += list(_edge_sessions().values())
+    docs.append(_whole_numbers())
     paths = []
     for i, doc in enumerate(docs):
         path = tmp_path / f"s{i}.mcap"
@@ -78,6 +79,29 @@ def test_sessions_recorded_compiled_replay_bit_for_bit_in_pure_python(tmp_path):
         match, divergence, frames = result["runs"][str(path)]
         assert match, (path.name, divergence)
         assert frames > 0
+
+
+def _whole_numbers() -> dict:
+    """A session written with integers wherever a number may be one: the builds must not
+    tell 1 from 1.0 anywhere (the compiled one converts ints it reads as floats)."""
+    from conftest import session_doc, table
+    doc = session_doc(
+        parts=[{"name": "cube", "shape": {"type": "box", "size": [0.05, 0.05, 0.05]},
+                "density": 800, "pose": {"position": [0, 0, 1]}}],
+        right_hand=[{"t": 0, "position": [0, 0, 1], "grip": False}, {"t": 0.2, "grip": True},
+                    {"t": 0.6, "position": [0, 1, 1]}, {"t": 0.8, "grip": False}],
+        duration_s=2, environment=[table()],
+        physics={"gravity_scale_free": 1, "friction_static": 0, "friction_dynamic": 0,
+                 "grab_radius": 1, "gravity": [0, 0, -10]})
+    return doc
+
+
+def test_whole_numbers_are_the_floats_they_stand_for():
+    from vade_replay.scene import physics_from_doc
+    p = physics_from_doc({"gravity_scale_free": 1, "friction_static": 0, "release_window": 3},
+                         1.0)
+    assert type(p.gravity_scale_free) is float and p.gravity_scale_free == 1.0
+    assert type(p.friction_static) is float and type(p.release_window) is int
 
 
 def test_every_module_listed_exists_and_is_compiled_when_any_is():

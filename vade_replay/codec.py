@@ -92,12 +92,14 @@ def _decode_devices_fast(devices: dict) -> tuple | None:
             return None
         values += pos
         values += rot
-        rows.append((name, DeviceSample(tuple(pos), tuple(rot), grip)))
-    # Every number a float; the sum is finite only if every term is.
+        rows.append((name, pos, rot, grip))
+    # Every number a float; the sum is finite only if every term is. (Checked before any
+    # DeviceSample is made: compiled, its fields are checked to be floats.)
     if values and not (set(map(type, values)) == _FLOAT_ONLY and math.isfinite(sum(values, 0.0))
                        and max(map(abs, values)) <= MAX_ABS_POSITION_M):
         return None
-    return tuple(rows)
+    return tuple((name, DeviceSample(tuple(pos), tuple(rot), grip))
+                 for name, pos, rot, grip in rows)
 
 
 def decode_tracker(data: bytes) -> TrackerFrame:

@@ -23,8 +23,8 @@ import os
 import sys
 
 PACKAGE = "vade_replay"
-# The modules a frame runs through (step, its dynamics, constraints, the encoder), as paths
-# from the project root. Data classes (state, frames) and I/O stay Python.
+# The modules a frame runs through (step, its dynamics, constraints, the encoder, the state
+# and frame classes), as paths from the project root. I/O and the review stay Python.
 MODULES = (
     "vade_replay/spatial.py",
     "vade_replay/constraints.py",
@@ -33,6 +33,8 @@ MODULES = (
     "vade_replay/dynamics/velocity.py",
     "vade_replay/step.py",
     "vade_replay/codec.py",
+    "vade_replay/state.py",
+    "vade_replay/frames.py",
 )
 PURE_ENV = "VADE_REPLAY_PURE"
 _SLACK_S = 2.0

@@ -11,7 +11,7 @@ from __future__ import annotations
 import io
 import json
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 import trimesh
@@ -435,6 +435,12 @@ def physics_from_doc(doc: dict, length_factor: float) -> Physics:
     for key in LENGTH_FIELDS:
         if key in values:
             values[key] = float(values[key]) * length_factor
+    # A whole number given for a real parameter ("friction_static": 0) is that float: the
+    # simulation sees the same value whichever way it was written (and the compiled build
+    # would convert it anyway).
+    for f in fields(Physics):
+        if f.type in ("float", "float | None") and type(values.get(f.name)) is int:
+            values[f.name] = float(values[f.name])
     return Physics(**values)
 
 

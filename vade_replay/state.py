@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 from . import spatial as sp
 from .modes import Mode
@@ -72,7 +73,8 @@ class PartState:
     pose: sp.Pose
     linear_velocity: sp.Vec3 = sp.ZERO3
     angular_velocity: sp.Vec3 = sp.ZERO3
-    motion: object = None  # Held, free.Flight, OnBase, or None
+    # Any, not object: mypyc (vade_replay/native.py) fails on a dataclass field of `object`.
+    motion: Any = None  # Held, free.Flight, OnBase, or None
 
     def moved(self, pose: sp.Pose, linear_velocity: sp.Vec3, angular_velocity: sp.Vec3,
               motion: object) -> "PartState":
