@@ -7,7 +7,7 @@ consumer (replay check, rerun review, analysis). They hold plain Python values
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from collections.abc import Sequence
 from itertools import compress
 from operator import is_not
@@ -19,22 +19,40 @@ Quat = tuple[float, float, float, float]  # x, y, z, w
 MAX_ABS_POSITION_M = 1e6
 
 
-@dataclass(frozen=True, slots=True)
+# The classes here, in state.py and spatial.Pose are values: never changed after they are
+# made. They are not frozen dataclasses, and define their own __init__ (which dataclass
+# keeps), because compiled by mypyc (vade_replay/native.py) that is a direct C call, where a
+# frozen dataclass's generated __init__ runs as interpreted Python, ten times slower; a
+# frame makes dozens of them.
+
+
+@dataclass(slots=True)
 class DeviceSample:
     """One tracker sample: a pose in world coordinates (metres) and, for gloves, the grip."""
 
     position: Vec3
     rotation_xyzw: Quat
-    grip: bool | None = None
+    grip: bool | None
+
+    def __init__(self, position: Vec3, rotation_xyzw: Quat, grip: bool | None = None) -> None:
+        self.position = position
+        self.rotation_xyzw = rotation_xyzw
+        self.grip = grip
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class TrackerFrame:
     """All tracker inputs of one frame: the only thing a replay reads to re-run a session."""
 
     frame: int
     time_ns: int
     devices: tuple[tuple[str, DeviceSample], ...]  # sorted by device name
+
+    def __init__(self, frame: int, time_ns: int,
+                 devices: tuple[tuple[str, DeviceSample], ...]) -> None:
+        self.frame = frame
+        self.time_ns = time_ns
+        self.devices = devices
 
     def device(self, name: str) -> DeviceSample | None:
         for key, sample in self.devices:
@@ -43,7 +61,7 @@ class TrackerFrame:
         return None
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class PartSnapshot:
     """A part's derived state after a frame: mode, pose of the part frame, CM velocities."""
 
@@ -54,15 +72,31 @@ class PartSnapshot:
     linear_velocity: Vec3
     angular_velocity: Vec3
 
+    def __init__(self, name: str, mode: str, position: Vec3, rotation_xyzw: Quat,
+                 linear_velocity: Vec3, angular_velocity: Vec3) -> None:
+        self.name = name
+        self.mode = mode
+        self.position = position
+        self.rotation_xyzw = rotation_xyzw
+        self.linear_velocity = linear_velocity
+        self.angular_velocity = angular_velocity
 
-@dataclass(frozen=True, slots=True)
+
+@dataclass(slots=True)
 class FrameRecord:
     """Inputs of a frame and everything the step derived from them."""
 
     inputs: TrackerFrame
     base: PartSnapshot | None
     parts: tuple[PartSnapshot, ...]  # sorted by part name
-    events: tuple = field(default=())  # vade_replay.events.Event instances, in order
+    events: tuple  # vade_replay.events.Event instances, in order
+
+    def __init__(self, inputs: TrackerFrame, base: PartSnapshot | None,
+                 parts: tuple[PartSnapshot, ...], events: tuple = ()) -> None:
+        self.inputs = inputs
+        self.base = base
+        self.parts = parts
+        self.events = events
 
     @property
     def frame(self) -> int:

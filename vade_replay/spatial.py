@@ -193,12 +193,18 @@ def transpose(m: Mat3) -> Mat3:
     return ((m[0][0], m[1][0], m[2][0]), (m[0][1], m[1][1], m[2][1]), (m[0][2], m[1][2], m[2][2]))
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class Pose:
-    """A rigid transform ``a_from_b``: maps coordinates in frame b to frame a."""
+    """A rigid transform ``a_from_b``: maps coordinates in frame b to frame a.
 
-    position: Vec3 = ZERO3
-    rotation: Quat = IDENTITY_QUAT
+    A value: never changed after it is made (see ``frames`` for why it is not frozen)."""
+
+    position: Vec3
+    rotation: Quat
+
+    def __init__(self, position: Vec3 = ZERO3, rotation: Quat = IDENTITY_QUAT) -> None:
+        self.position = position
+        self.rotation = rotation
 
     def apply(self, v: Vec3) -> Vec3:
         return add(quat_rotate(self.rotation, v), self.position)

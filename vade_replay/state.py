@@ -1,4 +1,5 @@
-"""State: only what a step changes. Frozen, built of tuples and plain floats."""
+"""State: only what a step changes. Values built of tuples and plain floats, never changed
+after they are made (not frozen dataclasses, for speed: see ``frames``)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ from . import spatial as sp
 from .modes import Mode
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class Held:
     """A part in a hand: its fixed offset from the hand and its recent CM poses."""
 
@@ -17,8 +18,13 @@ class Held:
     hand_from_part: sp.Pose
     history: tuple  # tuple[(time_ns, world CM, world rotation), ...], newest last
 
+    def __init__(self, hand: str, hand_from_part: sp.Pose, history: tuple) -> None:
+        self.hand = hand
+        self.hand_from_part = hand_from_part
+        self.history = history
 
-@dataclass(frozen=True, slots=True)
+
+@dataclass(slots=True)
 class OnBase:
     """A part constrained on the base: its coordinates relative to the base and their rates.
 
@@ -34,13 +40,30 @@ class OnBase:
     base_from_snap: sp.Pose
     slide: tuple[float, ...]           # m, along Mate.slide_dirs
     slide_rate: tuple[float, ...]      # m/s
-    angle: float = 0.0                 # rad, about the base axis (right hand)
-    angle_rate: float = 0.0            # rad/s
-    cm_offset: sp.Vec3 = sp.ZERO3      # r_perp in base axes at angle 0
-    blocked_slide: tuple[float, ...] = ()  # unit vector in slide coordinates, or ()
-    blocked_turn: int = 0              # +1 / -1: turning that way is blocked
-    clear_at: tuple[float, ...] = ()   # slide coordinates where clearance was measured
-    clearance: float = 0.0             # m; 0 means "unknown: query"
+    angle: float                       # rad, about the base axis (right hand)
+    angle_rate: float                  # rad/s
+    cm_offset: sp.Vec3                 # r_perp in base axes at angle 0
+    blocked_slide: tuple[float, ...]   # unit vector in slide coordinates, or ()
+    blocked_turn: int                  # +1 / -1: turning that way is blocked
+    clear_at: tuple[float, ...]        # slide coordinates where clearance was measured
+    clearance: float                   # m; 0 means "unknown: query"
+
+    def __init__(self, mate: int, base_from_snap: sp.Pose, slide: tuple[float, ...],
+                 slide_rate: tuple[float, ...], angle: float = 0.0, angle_rate: float = 0.0,
+                 cm_offset: sp.Vec3 = sp.ZERO3, blocked_slide: tuple[float, ...] = (),
+                 blocked_turn: int = 0, clear_at: tuple[float, ...] = (),
+                 clearance: float = 0.0) -> None:
+        self.mate = mate
+        self.base_from_snap = base_from_snap
+        self.slide = slide
+        self.slide_rate = slide_rate
+        self.angle = angle
+        self.angle_rate = angle_rate
+        self.cm_offset = cm_offset
+        self.blocked_slide = blocked_slide
+        self.blocked_turn = blocked_turn
+        self.clear_at = clear_at
+        self.clearance = clearance
 
     def moved(self, slide: tuple[float, ...], slide_rate: tuple[float, ...], angle: float,
               angle_rate: float) -> "OnBase":
@@ -51,7 +74,7 @@ class OnBase:
                       self.clearance)
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class Resting:
     """A part lying on the base part on no recognised constraint: fixed relative to the base.
 
@@ -63,18 +86,32 @@ class Resting:
     base_from_part: sp.Pose
     up: sp.Vec3
 
+    def __init__(self, base_from_part: sp.Pose, up: sp.Vec3) -> None:
+        self.base_from_part = base_from_part
+        self.up = up
 
-@dataclass(frozen=True, slots=True)
+
+@dataclass(slots=True)
 class PartState:
     """One part's mode, world pose (of the part frame), CM velocities and mode-specific motion."""
 
     name: str
     mode: Mode
     pose: sp.Pose
-    linear_velocity: sp.Vec3 = sp.ZERO3
-    angular_velocity: sp.Vec3 = sp.ZERO3
+    linear_velocity: sp.Vec3
+    angular_velocity: sp.Vec3
     # Any, not object: mypyc (vade_replay/native.py) fails on a dataclass field of `object`.
-    motion: Any = None  # Held, free.Flight, OnBase, or None
+    motion: Any  # Held, free.Flight, OnBase, or None
+
+    def __init__(self, name: str, mode: Mode, pose: sp.Pose,
+                 linear_velocity: sp.Vec3 = sp.ZERO3, angular_velocity: sp.Vec3 = sp.ZERO3,
+                 motion: Any = None) -> None:
+        self.name = name
+        self.mode = mode
+        self.pose = pose
+        self.linear_velocity = linear_velocity
+        self.angular_velocity = angular_velocity
+        self.motion = motion
 
     def moved(self, pose: sp.Pose, linear_velocity: sp.Vec3, angular_velocity: sp.Vec3,
               motion: object) -> "PartState":
@@ -84,7 +121,7 @@ class PartState:
         return PartState(self.name, self.mode, pose, linear_velocity, angular_velocity, motion)
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class WorldState:
     """The whole simulation state after a frame."""
 
@@ -95,10 +132,21 @@ class WorldState:
     grips: tuple[tuple[str, bool], ...]  # last grip per hand, sorted by hand
     # Derived from ``parts``, kept so that a frame need not look at every part: indices of
     # the parts not at rest on the table (step._awake); None: not known, look at all.
-    awake: tuple[int, ...] | None = None
+    awake: tuple[int, ...] | None
     # The ``parts`` tuple ``awake`` was worked out for: a state copied with other parts
     # (``dataclasses.replace``) does not match it, and its awake set is worked out anew.
-    awake_of: tuple | None = None
+    awake_of: tuple | None
+
+    def __init__(self, frame: int, time_ns: int, parts: tuple[PartState, ...],
+                 base_pose: sp.Pose | None, grips: tuple[tuple[str, bool], ...],
+                 awake: tuple[int, ...] | None = None, awake_of: tuple | None = None) -> None:
+        self.frame = frame
+        self.time_ns = time_ns
+        self.parts = parts
+        self.base_pose = base_pose
+        self.grips = grips
+        self.awake = awake
+        self.awake_of = awake_of
 
     def awake_parts(self) -> tuple[int, ...] | None:
         """``awake`` if it belongs to these parts, else None (unknown)."""

@@ -46,6 +46,23 @@ class _Frame:
     events: list[Event] = field(default_factory=list)
     modes_changed: bool = False
 
+    def __init__(self, scene: Scene, collision: CollisionWorld, inputs: TrackerFrame,
+                 t_prev_ns: int, parts: list[PartState], *, base_pose: sp.Pose | None = None,
+                 base_prev: sp.Pose | None = None, awake: tuple[int, ...] = ()) -> None:
+        # Its own __init__ (dataclass keeps it): a direct call when compiled (see frames).
+        self.scene = scene
+        self.collision = collision
+        self.inputs = inputs
+        self.t_prev_ns = t_prev_ns
+        self.parts = parts
+        self.hands = {}
+        self.grips = {}
+        self.base_pose = base_pose
+        self.base_prev = base_prev
+        self.awake = awake
+        self.events = []
+        self.modes_changed = False
+
     @property
     def dt_s(self) -> float:
         return (self.inputs.time_ns - self.t_prev_ns) * 1e-9

@@ -35,7 +35,7 @@ COMPOSITIONS = {2: (1.0,), 4: _Y4, 6: _Y6}
 FREE_ROTATIONS = ("momentum", "constant_omega", "rk4", "euler")
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class Flight:
     """A part in free flight: release state and the rotation state at ``t_ns``."""
 
@@ -48,7 +48,20 @@ class Flight:
     omega_world: sp.Vec3          # constant angular velocity (constant_omega model)
     # False while a part that left the base still touches it: the base does not stop it
     # until the two have separated once.
-    base_clear: bool = True
+    base_clear: bool
+
+    # Not frozen, and its own __init__: see vade_replay/frames.py (a value all the same).
+    def __init__(self, t0_ns: int, cm0: sp.Vec3, v0: sp.Vec3, t_ns: int,
+                 world_from_principal: sp.Quat, momentum_principal: sp.Vec3,
+                 omega_world: sp.Vec3, base_clear: bool = True) -> None:
+        self.t0_ns = t0_ns
+        self.cm0 = cm0
+        self.v0 = v0
+        self.t_ns = t_ns
+        self.world_from_principal = world_from_principal
+        self.momentum_principal = momentum_principal
+        self.omega_world = omega_world
+        self.base_clear = base_clear
 
 
 def start(*, t_ns: int, cm: sp.Vec3, velocity: sp.Vec3, omega_world: sp.Vec3,
