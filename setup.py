@@ -1,12 +1,17 @@
 """The build: the package as pyproject.toml declares it, plus the per-frame modules compiled
 by mypyc from the same Python sources (``vade_replay/native.py`` lists them and says why).
 
-Nothing is compiled with ``VADE_REPLAY_PURE=1`` set at install time; a failed compile (no
-C compiler) leaves those modules pure Python, with a warning from setuptools.
+Nothing is compiled with ``VADE_REPLAY_PURE=1`` set at install time. Where mypy is missing
+or refuses the modules, or the C compiler fails, the package installs as pure Python with a
+warning on stderr (``pip install -v`` shows it); with ``VADE_REPLAY_REQUIRE_COMPILED=1``
+(CI) the install fails instead. A compiling build writes ``vade_replay/_compiled_from.py``,
+the hash of each source it compiled: the package runs the sources of any module edited
+since (``native.stale``).
 """
 
 import glob
 import os
+import pprint
 import runpy
 import shutil
 import sys
@@ -16,28 +21,48 @@ from setuptools import setup
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 NATIVE = runpy.run_path(os.path.join(HERE, "vade_replay", "native.py"))
+IN_PLACE = bool({"editable_wheel", "develop", "--inplace", "-i"} & set(sys.argv[1:]))
 
 
-def _remove_old_builds():
-    """Compiled files of an earlier build, which would shadow the sources (in place)."""
-    for path in NATIVE["MODULES"]:
-        stem = os.path.join(HERE, path[:-3])
-        for old in glob.glob(stem + ".*.so") + glob.glob(stem + "__mypyc.*.so") \
-                + glob.glob(stem + ".*.pyd") + glob.glob(stem + "__mypyc.*.pyd"):
-            os.remove(old)
+def _warn(text):
+    print(f"vade_replay: {text}", file=sys.stderr)
+
+
+def _pure(reason):
+    """Install pure Python, or fail where a compiled build is required (CI)."""
+    if NATIVE["compiled_required"]() and not NATIVE["pure_requested"]():
+        raise SystemExit(f"vade_replay: {reason}, and {NATIVE['REQUIRE_ENV']}=1 requires "
+                         "the compiled build")
+    _warn(f"{reason}: the per-frame modules run as Python (slower, same results)")
+    if IN_PLACE:  # an earlier in-place build would shadow the sources
+        for path in NATIVE["MODULES"]:
+            stem = os.path.join(HERE, path[:-3])
+            for old in glob.glob(stem + ".*.so") + glob.glob(stem + "__mypyc.*.so") \
+                    + glob.glob(stem + ".*.pyd") + glob.glob(stem + "__mypyc.*.pyd"):
+                os.remove(old)
+        built_from = os.path.join(HERE, NATIVE["BUILT_FROM"])
+        if os.path.exists(built_from):
+            os.remove(built_from)
+    return []
+
+
+def _record_sources():
+    hashes = {path: NATIVE["source_hash"](os.path.join(HERE, path))
+              for path in NATIVE["MODULES"]}
+    with open(os.path.join(HERE, NATIVE["BUILT_FROM"]), "w", encoding="utf-8") as f:
+        f.write('"""Written by setup.py: the sources the compiled modules were built '
+                'from (SHA-256)."""\n\nSOURCES = ' + pprint.pformat(hashes) + "\n")
 
 
 def ext_modules():
-    if {"egg_info", "dist_info"} & set(sys.argv[1:]):
+    if {"egg_info", "dist_info", "sdist"} & set(sys.argv[1:]):
         return []  # pip asking for requirements or metadata: mypyc's half-minute can wait
     if NATIVE["pure_requested"]():
-        _remove_old_builds()
-        return []
+        return _pure(f"{NATIVE['PURE_ENV']}=1")
     try:
         from mypyc.build import mypycify
     except ImportError:  # built without the build requirements (--no-build-isolation)
-        _remove_old_builds()
-        return []
+        return _pure("mypy (mypyc) is not installed")
     # pip builds in an environment of the build requirements alone: numpy, trimesh and the
     # rest are missing there, so they are typed Any (as they are to the compiled code at run
     # time anyway). Type errors in the modules imported by these are not theirs to fix here.
@@ -47,15 +72,14 @@ def ext_modules():
         extensions = mypycify(["--follow-imports=silent", "--ignore-missing-imports",
                                f"--cache-dir={cache}", *NATIVE["MODULES"]],
                               opt_level="3", separate=True)
-    except (Exception, SystemExit) as exc:  # mypy refused them: install pure Python
-        print(f"vade_replay: not compiling the per-frame modules ({exc!r}); "
-              "they run as Python", file=sys.stderr)
-        _remove_old_builds()
-        return []
+    except (Exception, SystemExit) as exc:  # mypy refused them
+        return _pure(f"mypyc did not compile the per-frame modules ({exc!r})")
     finally:
         shutil.rmtree(cache, ignore_errors=True)
+    _record_sources()
     for extension in extensions:
-        extension.optional = True  # no compiler: the pure-Python package still installs
+        # No compiler: the pure-Python package still installs (not where CI requires it).
+        extension.optional = not NATIVE["compiled_required"]()
         # Each a*b+c rounded twice, as CPython does it: no fused multiply-add (aarch64's
         # default), so the compiled modules give the same bits as their sources.
         extension.extra_compile_args = [*extension.extra_compile_args, "-ffp-contract=off"]

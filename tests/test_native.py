@@ -13,7 +13,6 @@ import json
 import os
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -22,6 +21,7 @@ from hypothesis import given
 import strategies as S
 from conftest import RECORDINGS, make_session
 from vade_replay import native
+from vade_replay.errors import SessionError
 from vade_replay.replay import record
 
 COMPILED = native.compiled()
@@ -31,7 +31,8 @@ import json, sys
 from vade_replay import native
 from vade_replay.recording import Recording
 from vade_replay.replay import replay
-out = {"describe": native.describe(), "compiled": list(native.compiled()), "runs": {}}
+out = {"describe": native.describe(), "compiled": list(native.compiled()), "runs": {},
+       "package": __import__("os").path.dirname(native.__file__)}
 for path in sys.argv[1:]:
     s = replay(Recording(path))
     out["runs"][path] = [s.match, s.first_divergence and s.first_divergence["text"], s.frames]
@@ -41,10 +42,13 @@ print(json.dumps(out))
 
 def _replay_pure(paths) -> dict:
     env = dict(os.environ, VADE_REPLAY_PURE="1")
-    done = subprocess.run([sys.executable, "-c", _REPLAY_ALL, *map(str, paths)], env=env,
-                          capture_output=True, text=True, timeout=600)
+    # -P: the installed package, not a checkout in the working directory.
+    done = subprocess.run([sys.executable, "-P", "-c", _REPLAY_ALL, *map(str, paths)],
+                          env=env, capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr
-    return json.loads(done.stdout)
+    result = json.loads(done.stdout)
+    assert result["package"] == str(Path(native.__file__).parent)
+    return result
 
 
 def test_the_pure_switch_runs_the_python_sources():
@@ -52,6 +56,15 @@ def test_the_pure_switch_runs_the_python_sources():
     assert result["compiled"] == []
     assert result["describe"] == "pure Python (VADE_REPLAY_PURE=1)"
     assert result["runs"][str(RECORDINGS / "drop_on_table.mcap")][0] is True
+
+
+def test_a_compiled_build_where_one_is_required():
+    """CI sets VADE_REPLAY_REQUIRE_COMPILED=1: there a pure-Python install is a failure, not
+    a reason to skip the cross-build check below."""
+    if native.compiled_required() and not native.pure_requested():
+        assert len(COMPILED) == len(native.MODULES), native.describe()
+    else:
+        pytest.skip(f"{native.REQUIRE_ENV} is not set ({native.describe()})")
 
 
 @pytest.mark.skipif(not COMPILED, reason="this install has no compiled modules "
@@ -92,7 +105,8 @@ def _whole_numbers() -> dict:
                     {"t": 0.6, "position": [0, 1, 1]}, {"t": 0.8, "grip": False}],
         duration_s=2, environment=[table()],
         physics={"gravity_scale_free": 1, "friction_static": 0, "friction_dynamic": 0,
-                 "grab_radius": 1, "gravity": [0, 0, -10]})
+                 "grab_radius": 1, "gravity": [0, 0, -10], "release_window": 5.0,
+                 "free_rotation_order": 4.0})
     return doc
 
 
@@ -102,6 +116,14 @@ def test_whole_numbers_are_the_floats_they_stand_for():
                          1.0)
     assert type(p.gravity_scale_free) is float and p.gravity_scale_free == 1.0
     assert type(p.friction_static) is float and type(p.release_window) is int
+    # JSON Schema takes 7.0 for an integer: it is the count 7 (it crashed the compiled
+    # build, and both builds with release_window), and 7.5 is an error naming the field.
+    p = physics_from_doc({"release_window": 7.0, "free_rotation_order": 6.0}, 1.0)
+    assert (p.release_window, p.free_rotation_order) == (7, 6)
+    assert type(p.release_window) is int and type(p.free_rotation_order) is int
+    with pytest.raises(SessionError, match="whole number") as info:
+        physics_from_doc({"release_window": 7.5}, 1.0, file="s.json")
+    assert info.value.field == "physics.release_window" and info.value.file == "s.json"
 
 
 def test_every_module_listed_exists_and_is_compiled_when_any_is():
@@ -111,18 +133,21 @@ def test_every_module_listed_exists_and_is_compiled_when_any_is():
 
 
 def test_a_module_edited_after_its_build_is_stale(tmp_path):
+    """By content, not time: a copy that keeps old times (cp -p, tar) is still caught."""
     package = tmp_path / "vade_replay"
     (package / "dynamics").mkdir(parents=True)
     suffix = native.importlib.machinery.EXTENSION_SUFFIXES[0]
     for path in native.MODULES:
-        (tmp_path / path).write_text("")
+        (tmp_path / path).write_text(f"# {path}\n")
         (tmp_path / (path[:-3] + suffix)).write_text("")
-    now = time.time()
-    for path in native.MODULES:
-        os.utime(tmp_path / path, (now - 100, now - 100))
-        os.utime(tmp_path / (path[:-3] + suffix), (now - 99, now - 99))
+    assert native.stale(str(tmp_path)) == list(native.MODULES)  # no hashes: unknown build
+    hashes = {path: native.source_hash(str(tmp_path / path)) for path in native.MODULES}
+    (tmp_path / native.BUILT_FROM).write_text(f"SOURCES = {hashes!r}\n")
     assert native.stale(str(tmp_path)) == []
-    os.utime(tmp_path / "vade_replay/step.py", (now, now))  # edited since
+    step = tmp_path / "vade_replay/step.py"
+    before = step.stat()
+    step.write_text("# vade_replay/step.py, edited\n")
+    os.utime(step, (before.st_atime, before.st_mtime))  # same times as before the edit
     assert native.stale(str(tmp_path)) == ["vade_replay/step.py"]
-    (tmp_path / ("vade_replay/step" + suffix)).unlink()   # never compiled: not stale
+    (tmp_path / ("vade_replay/step" + suffix)).unlink()   # not compiled: not stale
     assert native.stale(str(tmp_path)) == []

@@ -329,13 +329,23 @@ def decode_parts(data: bytes, *, frame: int | None = None,
     frame before), in its order."""
     value = loads(data, topic=PARTS_TOPIC, frame=frame)
 
+    def vec(value, n: int) -> tuple:
+        # Checked and made floats here, so that both builds read the same (compiled,
+        # PartSnapshot checks its field types itself, and would make ints floats).
+        if type(value) is not list or len(value) != n \
+                or not all(type(v) is float or type(v) is int for v in value):
+            raise TypeError(f"expected {n} numbers, got {value!r}")
+        return tuple(float(v) for v in value)
+
     def snap(d: dict) -> PartSnapshot:
-        return PartSnapshot(d["name"], d["mode"], tuple(d["position"]), tuple(d["xyzw"]),
-                            tuple(d["linear_velocity"]), tuple(d["angular_velocity"]))
+        if type(d["name"]) is not str or type(d["mode"]) is not str:
+            raise TypeError("name and mode must be strings")
+        return PartSnapshot(d["name"], d["mode"], vec(d["position"], 3), vec(d["xyzw"], 4),
+                            vec(d["linear_velocity"], 3), vec(d["angular_velocity"], 3))
     try:
         base = snap(value["base"]) if value.get("base") else None
         listed = tuple(snap(p) for p in value["parts"])
-    except (KeyError, TypeError) as exc:
+    except (KeyError, TypeError, OverflowError) as exc:
         raise RecordingError(f"malformed part poses: {exc}", field=PARTS_TOPIC, frame=frame) \
             from None
     if value.get("complete", True) is not False:

@@ -16,6 +16,8 @@ This module is read by ``setup.py`` before the package is built: standard librar
 
 from __future__ import annotations
 
+import ast
+import hashlib
 import importlib.abc
 import importlib.machinery
 import importlib.util
@@ -37,7 +39,11 @@ MODULES = (
     "vade_replay/frames.py",
 )
 PURE_ENV = "VADE_REPLAY_PURE"
-_SLACK_S = 2.0
+# Set by CI: a build that cannot compile fails instead of installing pure Python, and the
+# cross-build tests fail instead of skipping.
+REQUIRE_ENV = "VADE_REPLAY_REQUIRE_COMPILED"
+# Written by setup.py next to the modules when it compiles them: each source's SHA-256.
+BUILT_FROM = "vade_replay/_compiled_from.py"
 
 
 def module_names() -> tuple[str, ...]:
@@ -46,6 +52,25 @@ def module_names() -> tuple[str, ...]:
 
 def pure_requested() -> bool:
     return os.environ.get(PURE_ENV, "") not in ("", "0")
+
+
+def compiled_required() -> bool:
+    return os.environ.get(REQUIRE_ENV, "") not in ("", "0")
+
+
+def source_hash(path: str) -> str:
+    with open(path, "rb") as f:
+        return hashlib.sha256(f.read()).hexdigest()
+
+
+def built_from(root: str) -> dict[str, str] | None:
+    """The source hashes recorded by the last compiling build under ``root``, or None."""
+    try:
+        with open(os.path.join(root, BUILT_FROM), encoding="utf-8") as f:
+            value = ast.literal_eval(f.read().partition("=")[2].strip())
+    except (OSError, ValueError, SyntaxError):
+        return None
+    return value if isinstance(value, dict) else None
 
 
 def compiled() -> tuple[str, ...]:
@@ -59,7 +84,8 @@ def compiled() -> tuple[str, ...]:
 
 
 def describe() -> str:
-    """One line for summaries and benchmark tables: ``compiled 7/7`` or ``pure Python``."""
+    """One line for summaries and benchmark tables: ``compiled 9/9 (mypyc)`` or
+    ``pure Python``."""
     names = compiled()
     if not names:
         return "pure Python" + (f" ({PURE_ENV}=1)" if pure_requested() else "")
@@ -75,15 +101,16 @@ def _extension(source: str) -> str | None:
 
 
 def stale(root: str) -> list[str]:
-    """The modules whose source is newer than its compiled extension under ``root`` (the
-    folder that holds the package): edited, or checked out, since the last build. Two
-    seconds of slack: installing a wheel writes a module's files one after the other."""
+    """The compiled modules under ``root`` (the folder that holds the package) whose source
+    is not the one they were compiled from: edited, or checked out, since the last build
+    (by content: ``BUILT_FROM`` holds the hashes), or compiled by a build that left none."""
+    hashes = built_from(root)
     out = []
     for path in MODULES:
         source = os.path.join(root, path)
-        extension = _extension(source)
-        if extension is not None and os.path.isfile(source) \
-                and os.path.getmtime(source) > os.path.getmtime(extension) + _SLACK_S:
+        if _extension(source) is None or not os.path.isfile(source):
+            continue
+        if hashes is None or hashes.get(path) != source_hash(source):
             out.append(path)
     return out
 
@@ -119,7 +146,7 @@ def install_switch(package_dir: str) -> None:
     if changed:
         import warnings
         warnings.warn(f"vade_replay: {', '.join(changed)} changed since it was compiled; "
-                      "running the Python sources (slower, same results). Run "
-                      "`pip install -e .` again to compile them.", RuntimeWarning,
-                      stacklevel=2)
+                      "running the Python sources (slower, same results). Install the "
+                      "package again (`pip install -e .` in a checkout) to compile them.",
+                      RuntimeWarning, stacklevel=2)
         sys.meta_path.insert(0, _SourcesFirst())

@@ -423,7 +423,7 @@ def _assembly(doc: dict, part: Body, base: Body, physics: Physics, f: float, *, 
         final_angle=math.radians(float(final_tol.get("angle_deg", cn.DEFAULT_FINAL_ANGLE_DEG))))
 
 
-def physics_from_doc(doc: dict, length_factor: float) -> Physics:
+def physics_from_doc(doc: dict, length_factor: float, *, file: str | None = None) -> Physics:
     """Physics from a session's ``physics`` block, lengths converted to metres."""
     values = dict(doc)
     model = values.get("model", "general")
@@ -435,12 +435,19 @@ def physics_from_doc(doc: dict, length_factor: float) -> Physics:
     for key in LENGTH_FIELDS:
         if key in values:
             values[key] = float(values[key]) * length_factor
-    # A whole number given for a real parameter ("friction_static": 0) is that float: the
-    # simulation sees the same value whichever way it was written (and the compiled build
-    # would convert it anyway).
+    # A whole number given for a real parameter ("friction_static": 0) is that float, and a
+    # count written as a float ("release_window": 7.0, which JSON Schema calls an integer)
+    # is that int: the simulation sees the same value whichever way it was written, and
+    # the compiled build (which checks the types) the same as the Python sources.
     for f in fields(Physics):
-        if f.type in ("float", "float | None") and type(values.get(f.name)) is int:
-            values[f.name] = float(values[f.name])
+        value = values.get(f.name)
+        if f.type in ("float", "float | None") and type(value) is int:
+            values[f.name] = float(value)
+        elif f.type == "int" and type(value) is float:
+            if not value.is_integer():
+                raise SessionError(f"must be a whole number, got {value!r}", file=file,
+                                   field=f"physics.{f.name}")
+            values[f.name] = int(value)
     return Physics(**values)
 
 
@@ -448,7 +455,7 @@ def build_scene(session: dict, files: dict[str, bytes], *, file: str = "<session
     """Build the frozen Scene from a validated session document and the files it names."""
     units = session.get("units", "m")
     f = UNIT_TO_M[units]
-    physics = physics_from_doc(session.get("physics", {}), f)
+    physics = physics_from_doc(session.get("physics", {}), f, file=file)
     names = [p["name"] for p in session["parts"]]
     if len(set(names)) != len(names):
         raise SessionError("part names must be unique", file=file, field="parts")

@@ -116,8 +116,10 @@ def _builds(path: Path, rounds: int) -> list[dict]:
             env.pop(native.PURE_ENV, None)
             if build == "pure":
                 env[native.PURE_ENV] = "1"
-            out = subprocess.run([sys.executable, "-c", _TIME_REPLAY, str(path)], env=env,
-                                 check=True, capture_output=True, text=True).stdout.split(maxsplit=2)
+            # -P: the installed package, not a checkout in the working directory.
+            out = subprocess.run([sys.executable, "-P", "-c", _TIME_REPLAY, str(path)],
+                                 env=env, check=True, capture_output=True,
+                                 text=True).stdout.split(maxsplit=2)
             best[build] = min(best[build], (float(out[0]), int(out[1]), out[2].strip()))
     return [{"table": "builds", "session": path.stem, "build": describe, "frames": frames,
              "replay_s": seconds, "us_per_frame": seconds / frames * 1e6,
