@@ -11,8 +11,11 @@ from mcap.writer import CompressionType, Writer
 
 
 def copy_recording(src: Path, dst: Path, edit: Callable[[str, int, bytes], bytes | None],
-                   *, drop_attachments: tuple[str, ...] = ()) -> None:
-    """Copy src to dst; ``edit(topic, index_on_topic, data)`` returns new data or None to drop."""
+                   *, drop_attachments: tuple[str, ...] = (),
+                   edit_attachment: Callable[[str, bytes], bytes] | None = None,
+                   edit_metadata: Callable[[str, dict], dict] | None = None) -> None:
+    """Copy src to dst; ``edit(topic, index_on_topic, data)`` returns new data or None to drop;
+    ``edit_attachment(name, data)`` and ``edit_metadata(name, values)`` the new contents."""
     with open(src, "rb") as f_in, open(dst, "wb") as f_out:
         reader = make_reader(f_in)
         header = reader.get_header()
@@ -28,10 +31,15 @@ def copy_recording(src: Path, dst: Path, edit: Callable[[str, int, bytes], bytes
                 channel.topic, channel.message_encoding, schema_ids[channel.schema_id])
         for attachment in reader.iter_attachments():
             if attachment.name not in drop_attachments:
+                data = attachment.data if edit_attachment is None \
+                    else edit_attachment(attachment.name, attachment.data)
                 writer.add_attachment(attachment.create_time, attachment.log_time,
-                                      attachment.name, attachment.media_type, attachment.data)
+                                      attachment.name, attachment.media_type, data)
         for metadata in reader.iter_metadata():
-            writer.add_metadata(metadata.name, dict(metadata.metadata))
+            values = dict(metadata.metadata)
+            if edit_metadata is not None:
+                values = edit_metadata(metadata.name, values)
+            writer.add_metadata(metadata.name, values)
         counts: dict[str, int] = {}
         for _, channel, message in reader.iter_messages(log_time_order=False):
             index = counts.get(channel.topic, 0)

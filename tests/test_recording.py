@@ -5,10 +5,13 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pytest
 from mcap.reader import make_reader
 
 from conftest import RECORDINGS
 from vade_replay.recording import Recording
+from vade_replay.replay import record
+from vade_replay.session import load
 
 
 def test_chunks_span_at_most_a_second_and_are_zstd():
@@ -78,3 +81,41 @@ def test_a_replay_written_out_keeps_its_sources_encoding(tmp_path):
     out = tmp_path / "again.mcap"
     replay(Recording(LEGACY), out=out)
     assert Recording(out).parts_encoding == codec.PARTS_FULL and replay(Recording(out)).match
+
+
+def test_a_session_validated_when_recorded_is_not_validated_again(tmp_path, monkeypatch):
+    """The recording stores a digest of the schema and the session bytes it validated;
+    opening it skips jsonschema (most of the setup of a 200-part session) while both are
+    unchanged, and validates as before once either differs."""
+    from mcap_edit import copy_recording
+    from vade_replay import session as session_module
+    from vade_replay.errors import SessionError
+
+    path = tmp_path / "drop.mcap"
+    record(load(RECORDINGS / "drop_on_table.json"), path)
+    calls = []
+    real = session_module.validate
+    monkeypatch.setattr(session_module, "validate",
+                        lambda doc, *, file: (calls.append(file), real(doc, file=file)))
+    Recording(path)
+    assert calls == []
+
+    # The digest does not match (another schema, or an edited digest): validated again.
+    stale = tmp_path / "stale.mcap"
+    copy_recording(path, stale, lambda topic, i, data: data,
+                   edit_metadata=lambda name, v: {"session": "0" * 64}
+                   if name == "validated" else v)
+    Recording(stale)
+    assert len(calls) == 1
+
+    # The session edited after recording: validated, and the mistake named as before.
+    def unknown_field(name, data):
+        if name != "session.json":
+            return data
+        doc = json.loads(data)
+        doc["colour"] = "red"
+        return json.dumps(doc).encode()
+    edited = tmp_path / "edited.mcap"
+    copy_recording(path, edited, lambda topic, i, data: data, edit_attachment=unknown_field)
+    with pytest.raises(SessionError, match="unknown field 'colour'"):
+        Recording(edited)

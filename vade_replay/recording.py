@@ -29,13 +29,15 @@ from . import codec
 from .errors import RecordingError
 from .frames import FrameRecord, TrackerFrame
 from .scene import Scene
-from .session import Session, load_schema, parse
+from .session import Session, load_schema, parse, validated_digest
 
 PROFILE = "vade"
 SESSION_ATTACHMENT = "session.json"
 FILE_ATTACHMENT_PREFIX = "files/"
 CHUNK_SECONDS_NS = 10**9
 ENCODING_METADATA = "encoding"
+# session.validated_digest of the attached session: a replay skips validating it again.
+VALIDATED_METADATA = "validated"
 # What a damaged file raises from mcap and its zstd chunks (a flipped byte in a compressed
 # chunk is a ZstdError, not an McapError).
 _READ_ERRORS = (McapError, ZstdError, OSError, EOFError, ValueError, struct.error, KeyError)
@@ -105,6 +107,8 @@ class RecordingWriter:
         # How /parts and the transforms are written (codec.derived_messages): a file without
         # this record is from before the ``changed`` encoding and lists every part.
         self._writer.add_metadata(ENCODING_METADATA, {"parts": parts_encoding})
+        self._writer.add_metadata(VALIDATED_METADATA,
+                                  {"session": validated_digest(session.raw)})
         self._encoder = codec.FrameEncoder(parts_encoding)
         self._sequence = 0
         self._last_flush_ns: int | None = None
@@ -194,7 +198,8 @@ class Recording:
         files = {name[len(FILE_ATTACHMENT_PREFIX):]: data for name, data in attachments.items()
                  if name.startswith(FILE_ATTACHMENT_PREFIX)}
         self.session = parse(attachments[SESSION_ATTACHMENT], files,
-                             source=f"{self.path}:{SESSION_ATTACHMENT}")
+                             source=f"{self.path}:{SESSION_ATTACHMENT}",
+                             validated=self.metadata.get(VALIDATED_METADATA, {}).get("session"))
         self.frame_count = self._frame_count()
         self.parts_encoding = self.metadata.get(ENCODING_METADATA, {}).get(
             "parts", codec.PARTS_FULL)

@@ -7,6 +7,7 @@ either is the same.
 
 from __future__ import annotations
 
+import hashlib
 import json
 from dataclasses import dataclass
 from importlib import resources
@@ -39,6 +40,19 @@ def load_schema(name: str) -> dict:
 
 
 _VALIDATOR = None
+_SCHEMA_DIGEST: str | None = None
+
+
+def validated_digest(raw: bytes) -> str:
+    """What a recording stores of a session it validated: SHA-256 over this version's
+    session schema and the session's bytes. A file whose session bytes (and the schema)
+    are unchanged since then need not be validated again: for a session of 200 parts,
+    jsonschema takes about 100 ms, most of a replay's setup."""
+    global _SCHEMA_DIGEST
+    if _SCHEMA_DIGEST is None:
+        schema = json.dumps(load_schema("session.schema.json"), sort_keys=True)
+        _SCHEMA_DIGEST = hashlib.sha256(schema.encode()).hexdigest()
+    return hashlib.sha256(_SCHEMA_DIGEST.encode() + b"\n" + raw).hexdigest()
 
 
 def _validator() -> jsonschema.Draft202012Validator:
@@ -122,13 +136,17 @@ class Session:
         return inputs.from_keyframes(tracker, units, file=self.source)
 
 
-def parse(raw: bytes, files: dict[str, bytes], *, source: str) -> Session:
-    """A Session from the session file's bytes and the named files' bytes."""
+def parse(raw: bytes, files: dict[str, bytes], *, source: str,
+          validated: str | None = None) -> Session:
+    """A Session from the session file's bytes and the named files' bytes. ``validated``:
+    the ``validated_digest`` a recording stored; when it matches, schema validation is
+    skipped (the bytes are the ones validated then, against the same schema)."""
     try:
         doc = strict_json(raw.decode("utf-8"))
     except (UnicodeDecodeError, ValueError) as exc:
         raise SessionError(f"not valid JSON: {exc}", file=source) from None
-    validate(doc, file=source)
+    if validated is None or validated != validated_digest(raw):
+        validate(doc, file=source)
     for name, where in referenced_files(doc).items():
         if name not in files:
             raise SessionError(f"file {name!r} is missing", file=source, field=where)
