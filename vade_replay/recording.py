@@ -20,7 +20,8 @@ from typing import Iterator
 
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
-from mcap.records import Attachment, Channel, DataEnd, Footer, Header, Message, Metadata, Schema
+from mcap.records import (Attachment, Channel, Chunk, DataEnd, Footer, Header, Message,
+                          Metadata, Schema)
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 from zstandard import ZstdError
@@ -179,15 +180,18 @@ class Recording:
         attachments: dict[str, bytes] = {}
         try:
             with open(self.path, "rb") as stream:
-                for record in StreamReader(stream).records:
+                # Chunks are not opened: the writer puts attachments and metadata before
+                # any chunk, so the first one ends the head (its schemas and channels are
+                # read by frames()). Opening it here cost a whole chunk's decompression.
+                for record in StreamReader(stream, emit_chunks=True).records:
                     if isinstance(record, Header):
                         self.profile = record.profile
                     elif isinstance(record, Attachment):
                         attachments[record.name] = record.data
                     elif isinstance(record, Metadata):
                         self.metadata[record.name] = dict(record.metadata)
-                    elif isinstance(record, (Schema, Channel, Message)):
-                        break  # the writer puts attachments and metadata before any data
+                    elif isinstance(record, (Chunk, Schema, Channel, Message)):
+                        break
         except _READ_ERRORS as exc:
             detail = str(exc) or f"{type(exc).__name__}: too short or not MCAP"
             raise RecordingError(f"not a readable MCAP file ({detail})", file=str(self.path)) \
