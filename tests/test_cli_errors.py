@@ -295,3 +295,29 @@ def test_a_what_if_says_so(tmp_path):
     assert result.returncode == 0
     assert result.stdout.startswith("what-if (physics.friction_dynamic=0.1): departs from the "
                                     "recording: first divergence at frame ")
+
+
+def _chunk_offsets(path: Path) -> list[int]:
+    from mcap.reader import make_reader
+    with open(path, "rb") as f:
+        return [c.chunk_start_offset for c in make_reader(f).get_summary().chunk_indexes]
+
+
+@pytest.mark.parametrize("chunk", [0, 1])
+@pytest.mark.parametrize("where", ["data", "compression"])
+def test_a_damaged_chunk_is_an_error_naming_where_not_a_short_recording(tmp_path, chunk, where):
+    """A chunk that cannot be read, with the file going on after it, is damage: exit 2
+    naming the file and the place (it was taken for a recording cut short, which replayed
+    the frames before it and could pass, or for an empty one). A file cut short still
+    replays what it holds (test above)."""
+    data = bytearray((RECORDINGS / "drop_on_table.mcap").read_bytes())
+    start = _chunk_offsets(RECORDINGS / "drop_on_table.mcap")[chunk]
+    # A chunk record: opcode, length, start and end times, uncompressed size and CRC
+    # (1 + 8 + 8 + 8 + 8 + 4 bytes), the compression ("zstd", length-prefixed), the
+    # records' length (8), then the zstd frame.
+    at = start + 37 + (4 if where == "compression" else 4 + 4 + 8)
+    assert bytes(data[start + 41:start + 45]) == b"zstd"
+    data[at:at + 4] = b"zstx" if where == "compression" else b"\0\0\0\0"
+    path = tmp_path / "damaged.mcap"
+    path.write_bytes(bytes(data))
+    _assert_clean_error(run_cli("vade-replay", str(path)), "damaged.mcap", "damaged after")

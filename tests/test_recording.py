@@ -119,3 +119,21 @@ def test_a_session_validated_when_recorded_is_not_validated_again(tmp_path, monk
     copy_recording(path, edited, lambda topic, i, data: data, edit_attachment=unknown_field)
     with pytest.raises(SessionError, match="unknown field 'colour'"):
         Recording(edited)
+
+    # A digest made for the edited bytes (forged: no mistake does that) skips the schema;
+    # what the scene builder then trips on is still named by the schema, not a traceback.
+    def far(name, data):
+        if name != "session.json":
+            return data
+        doc = json.loads(data)
+        doc.setdefault("physics", {})["grab_radius"] = "far"
+        return json.dumps(doc).encode()
+    forged_session = far("session.json", (RECORDINGS / "drop_on_table.json").read_bytes())
+    forged = tmp_path / "forged.mcap"
+    copy_recording(path, forged, lambda topic, i, data: data, edit_attachment=far,
+                   edit_metadata=lambda name, v: {"session": session_module.validated_digest(
+                       forged_session)} if name == "validated" else v)
+    recording = Recording(forged)
+    assert recording.session.trusted
+    with pytest.raises(SessionError, match="grab_radius"):
+        recording.session.build_scene()

@@ -18,7 +18,7 @@ from importlib import metadata as importlib_metadata
 from pathlib import Path
 from typing import Iterator
 
-from mcap.exceptions import McapError
+from mcap.exceptions import EndOfFile, McapError
 from mcap.reader import make_reader
 from mcap.records import (Attachment, Channel, Chunk, DataEnd, Footer, Header, Message,
                           Metadata, Schema)
@@ -41,7 +41,10 @@ ENCODING_METADATA = "encoding"
 VALIDATED_METADATA = "validated"
 # What a damaged file raises from mcap and its zstd chunks (a flipped byte in a compressed
 # chunk is a ZstdError, not an McapError).
-_READ_ERRORS = (McapError, ZstdError, OSError, EOFError, ValueError, struct.error, KeyError)
+# What the mcap library raises on a damaged or cut file (OverflowError: a chunk's compression
+# field damaged, its data then taken as raw bytes).
+_READ_ERRORS = (McapError, ZstdError, OSError, EOFError, ValueError, struct.error, KeyError,
+                OverflowError, MemoryError)
 PACKAGES = ("vade_replay", "numpy", "trimesh", "python-fcl", "mcap", "rerun-sdk", "jsonschema")
 
 
@@ -231,25 +234,39 @@ class Recording:
         topics: dict[int, str] = {}
         current: RecordedFrame | None = None
         complete = False
+        count = 0
         try:
             with open(self.path, "rb") as stream:
-                for record in StreamReader(stream).records:
-                    if isinstance(record, Channel):
-                        topics[record.id] = record.topic
-                    elif isinstance(record, Message):
-                        topic = topics.get(record.channel_id)
-                        if topic == codec.TRACKER_TOPIC:
-                            if current is not None:
-                                yield current
-                            current = RecordedFrame(self._decode_inputs(record.data), [])
-                        elif topic in codec.CHANNELS:
-                            if current is None:
-                                raise RecordingError(f"{topic} message before the first "
-                                                     "tracker frame", file=str(self.path))
-                            current.derived.append((topic, record.data))
-                    elif isinstance(record, (DataEnd, Footer)):
-                        complete = True
-        except _READ_ERRORS:
+                size = os.fstat(stream.fileno()).st_size
+                try:
+                    for record in StreamReader(stream).records:
+                        if isinstance(record, Channel):
+                            topics[record.id] = record.topic
+                        elif isinstance(record, Message):
+                            topic = topics.get(record.channel_id)
+                            if topic == codec.TRACKER_TOPIC:
+                                if current is not None:
+                                    yield current
+                                    count += 1
+                                current = RecordedFrame(self._decode_inputs(record.data), [])
+                            elif topic in codec.CHANNELS:
+                                if current is None:
+                                    raise RecordingError(f"{topic} message before the first "
+                                                         "tracker frame", file=str(self.path))
+                                current.derived.append((topic, record.data))
+                        elif isinstance(record, (DataEnd, Footer)):
+                            complete = True
+                except _READ_ERRORS as exc:
+                    at = stream.tell()
+                    if not (isinstance(exc, (EndOfFile, EOFError)) or at >= size):
+                        # Damaged, not cut short: the reader stopped inside the file.
+                        detail = str(exc) or type(exc).__name__
+                        raise RecordingError(
+                            f"damaged after {count} complete frames: the data before byte "
+                            f"{at} of {size} cannot be read ({detail})",
+                            file=str(self.path)) from None
+                    complete = False  # cut short (a crash while recording)
+        except OSError:
             complete = False
         if not complete:
             # Cut short: the last frame read may lack some of its messages; drop it.

@@ -38,13 +38,13 @@ class _Frame:
     inputs: TrackerFrame
     t_prev_ns: int
     parts: list[PartState]
-    hands: dict[str, sp.Pose] = field(default_factory=dict)
-    grips: dict[str, bool] = field(default_factory=dict)
+    hands: dict[str, sp.Pose] = field(default_factory=dict, init=False)
+    grips: dict[str, bool] = field(default_factory=dict, init=False)
     base_pose: sp.Pose | None = None
     base_prev: sp.Pose | None = None   # the base pose at the previous frame
     awake: tuple[int, ...] = ()        # parts not at rest on the table, at the frame start
-    events: list[Event] = field(default_factory=list)
-    modes_changed: bool = False
+    events: list[Event] = field(default_factory=list, init=False)
+    modes_changed: bool = field(default=False, init=False)
 
     def __init__(self, scene: Scene, collision: CollisionWorld, inputs: TrackerFrame,
                  t_prev_ns: int, parts: list[PartState], *, base_pose: sp.Pose | None = None,
