@@ -134,7 +134,7 @@ class _SourcesFirst(importlib.abc.MetaPathFinder):
 
 def install_switch(package_dir: str) -> None:
     """Called on importing the package. With ``VADE_REPLAY_PURE=1``, or when a compiled
-    module is older than its source (edited since ``pip install``), every module of
+    module was not built from its source as it is now (``stale``), every module of
     ``MODULES`` is imported from its source: compiled modules call each other directly, so
     one stale module among them would still run its old compiled code."""
     if any(isinstance(f, _SourcesFirst) for f in sys.meta_path):
