@@ -24,6 +24,21 @@ def test_every_session_has_a_golden():
         assert required in sessions
 
 
+def test_goldens_were_recorded_against_this_schema():
+    """Each golden's digest (metadata 'validated') is of this version's session schema and
+    validator, so replaying it skips validation as a user's fresh recording does (and the
+    benchmark's figures for the goldens mean that). After a change to the schema or to
+    jsonschema, regenerate them with `vade-goldens`: their messages will not change."""
+    from vade_replay.session import validated_digest
+    stale = []
+    for golden in GOLDENS:
+        recording = Recording(golden)
+        if recording.metadata.get("validated", {}).get("session") != \
+                validated_digest(recording.session.raw):
+            stale.append(golden.name)
+    assert not stale, f"regenerate with vade-goldens: {stale}"
+
+
 @pytest.mark.parametrize("golden", GOLDENS, ids=[p.stem for p in GOLDENS])
 def test_golden_replays_exactly(golden: Path):
     summary = replay(Recording(golden))
