@@ -151,3 +151,11 @@ def test_a_module_edited_after_its_build_is_stale(tmp_path):
     assert native.stale(str(tmp_path)) == ["vade_replay/step.py"]
     (tmp_path / ("vade_replay/step" + suffix)).unlink()   # not compiled: not stale
     assert native.stale(str(tmp_path)) == []
+
+
+def test_the_summary_says_which_build_ran(tmp_path):
+    from vade_replay.recording import Recording
+    from vade_replay.replay import replay
+    summary = replay(Recording(RECORDINGS / "drop_on_table.mcap")).to_dict()
+    assert summary["build"] == native.describe()
+    assert json.loads(json.dumps(summary))["build"].startswith(("compiled", "pure Python"))

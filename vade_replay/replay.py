@@ -16,7 +16,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Iterable, Iterator
 
-from . import codec
+from . import codec, native
 from .analysis import SessionAnalysis
 from .collision import CollisionWorld
 from .errors import ConfigError, RecordingError, SessionError, VadeError
@@ -78,6 +78,9 @@ class RunSummary:
     overrides: dict = field(default_factory=dict)
     counters: dict = field(default_factory=dict)
     truncated: bool = False
+    # Which build ran the frames (native.describe): compiled or the Python sources. Both
+    # give the same bits; it says where to look when two machines disagree.
+    build: str = field(default_factory=native.describe)
     analysis: SessionAnalysis = field(default_factory=SessionAnalysis)
 
     def to_dict(self) -> dict:
