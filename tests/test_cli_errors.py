@@ -107,18 +107,35 @@ def test_flipped_bytes_in_compressed_chunks_never_give_a_traceback(tmp_path):
             assert "flipped.mcap" in result.stderr
 
 
-def test_malformed_tracker_message_names_the_frame(tmp_path):
+# What orjson refuses (NaN, a number past float64, an integer past 64 bits) json reads,
+# and the check after it names the field either way.
+@pytest.mark.parametrize("bad", ["x", float("nan"), 10**30, "1e400"])
+def test_malformed_tracker_message_names_the_frame(tmp_path, bad):
     def edit(topic, index, data):
         if topic == "/tracker" and index == 42:
             msg = json.loads(data)
-            msg["devices"]["right_hand"]["position"] = [0.0, "x", 1.0]
-            return json.dumps(msg).encode()
+            msg["devices"]["right_hand"]["position"] = [0.0, "@", 1.0]
+            # json writes NaN as the token NaN; a number past float64 is spliced in as text.
+            return json.dumps(msg).replace('"@"', bad if bad == "1e400"
+                                           else json.dumps(bad)).encode()
         return data
 
     path = tmp_path / "bad_input.mcap"
     copy_recording(RECORDINGS / "drop_on_table.mcap", path, edit)
     _assert_clean_error(run_cli("vade-replay", str(path)), "bad_input.mcap", "frame 42",
                         "right_hand.position")
+
+
+def test_a_frame_number_past_64_bits_is_refused_naming_the_frame_field(tmp_path):
+    def edit(topic, index, data):
+        if topic == "/tracker" and index == 42:
+            return data.replace(b'"frame":42', b'"frame":100000000000000000000000')
+        return data
+
+    path = tmp_path / "bad_frame.mcap"
+    copy_recording(RECORDINGS / "drop_on_table.mcap", path, edit)
+    _assert_clean_error(run_cli("vade-replay", str(path)), "bad_frame.mcap", "/tracker",
+                        "frame")
 
 
 def test_recording_without_its_session(tmp_path):

@@ -8,9 +8,11 @@ frames (whose text is reused). Values json refuses (NaN, infinity) must be refus
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import replace
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -67,6 +69,68 @@ def test_ints_are_written_as_json_writes_them(frames):
     encoder = codec.FrameEncoder()
     for record in frames:
         assert encoder.derived_messages(record) == codec.derived_messages(record)
+
+
+def _json_texts(values) -> list[str]:
+    return [json.dumps(v) for v in values]
+
+
+def test_number_texts_are_json_s_on_every_decimal_exponent_and_notation_boundary():
+    """orjson's notation differs from repr's around 1e-5 and in the exponent's form: each
+    decimal exponent of float64, both signs, and the neighbours of every boundary."""
+    rng = np.random.default_rng(5)
+    values = []
+    for exponent in range(-324, 309):
+        for mantissa in (1.0, 2.5, 9.999999999999998, *rng.uniform(1.0, 10.0, 6).tolist()):
+            value = float(f"{mantissa!r}e{exponent}")
+            if math.isfinite(value):
+                values += [value, -value]
+    for edge in (1e-5, 1e-4, 1e15, 1e16, 1e17, 5e-324, 2.2250738585072014e-308,
+                 1.7976931348623157e308, 1.0, 0.0):
+        values += [v for v in (math.nextafter(edge, 0.0), edge, math.nextafter(edge, math.inf))
+                   if math.isfinite(v)]
+    values += [-0.0, 100000.00001, 0.1, 1 / 3]
+    for start in range(0, len(values), 13):
+        chunk = tuple(values[start:start + 13])
+        assert codec.json_numbers(chunk) == _json_texts(chunk), chunk
+
+
+def test_number_texts_are_json_s_for_random_bit_patterns():
+    """Every finite float64 is as likely: 65,000 of them."""
+    bits = np.random.default_rng(6).integers(0, 2**64, size=65_000, dtype=np.uint64)
+    values = [float(v) for v in bits.view(np.float64) if np.isfinite(v)]
+    for start in range(0, len(values), 13):
+        chunk = tuple(values[start:start + 13])
+        assert codec.json_numbers(chunk) == _json_texts(chunk)
+
+
+@settings(max_examples=300, deadline=None, derandomize=True)
+@given(st.lists(st.one_of(finite, st.integers(-2**63, 2**63 - 1), st.booleans()), max_size=16))
+def test_number_texts_are_json_s_for_any_floats_ints_and_bools(values):
+    assert codec.json_numbers(tuple(values)) == _json_texts(values)
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf, 2**70, -2**64])
+def test_number_texts_refuse_what_json_refuses_or_orjson_cannot_write(bad):
+    assert codec.json_numbers((0.5, bad, 1e-7)) is None
+
+
+def test_messages_are_read_to_the_same_values_as_json_reads_them():
+    """orjson reads what a replay decodes; every float64 must come back bit for bit, as
+    json's reading of the same text does (random bit patterns, written by repr)."""
+    bits = np.random.default_rng(7).integers(0, 2**64, size=20_000, dtype=np.uint64)
+    values = [float(v) for v in bits.view(np.float64) if np.isfinite(v)]
+    values += [5e-324, -0.0, 2.2250738585072011e-308, 1e-5, 9007199254740993.0]
+    text = json.dumps({"values": values, "n": [0, -0, 2**63 - 1, -2**63]}).encode()
+    read = codec.parse_json(text)
+    assert read == json.loads(text)
+    assert [v.hex() for v in read["values"]] == [v.hex() for v in values]
+
+
+@pytest.mark.parametrize("text", [b'[NaN]', b'[1e400]', b'["\\ud800"]',
+                                  b'{"a": 1, "a": 2}', b'[18446744073709551615, -0]'])
+def test_what_orjson_refuses_is_read_as_json_reads_it(text):
+    assert repr(codec.parse_json(text)) == repr(json.loads(text))
 
 
 @pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])

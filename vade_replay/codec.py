@@ -12,6 +12,8 @@ import json
 import math
 from dataclasses import replace
 
+import orjson
+
 from . import events as ev
 from .errors import RecordingError
 from .frames import (MAX_ABS_POSITION_M, DeviceSample, FrameRecord, PartSnapshot,
@@ -36,9 +38,22 @@ def dumps(value: dict) -> bytes:
     return json.dumps(value, sort_keys=True, separators=(",", ":"), allow_nan=False).encode()
 
 
+def parse_json(data: bytes):
+    """A message's JSON: by ``orjson`` (6x ``json.loads`` on a tracker frame, the same
+    float64 for every number: both round correctly), and by ``json`` what ``orjson``
+    refuses (``NaN``, a number past float64's range, lone surrogates), so that the checks
+    after name the field, not the parser. One difference is left: an integer past 64 bits
+    ``orjson`` reads as a float; no field takes one (the numbers of a pose are bounded,
+    frame and time fit MCAP's 64 bits), and either way it is refused, naming the field."""
+    try:
+        return orjson.loads(data)
+    except orjson.JSONDecodeError:
+        return json.loads(data)
+
+
 def loads(data: bytes, *, topic: str, frame: int | None = None) -> dict:
     try:
-        value = json.loads(data)
+        value = parse_json(data)
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise RecordingError(f"message on {topic} is not JSON: {exc}", frame=frame) from None
     if not isinstance(value, dict):
@@ -207,6 +222,36 @@ def derived_messages(record: FrameRecord, *, parts: str = PARTS_FULL,
 _FLOAT_REPR = float.__repr__
 
 
+def json_numbers(values: tuple) -> list[str] | None:
+    """The text ``json.dumps`` writes for each of ``values``, or ``None`` if it would refuse
+    one (NaN, infinity) or ``orjson`` cannot write one.
+
+    ``json`` writes a float as ``repr`` does: the shortest digits that read back to the same
+    float64. Each costs ~0.5 us in CPython's dtoa; ``orjson`` writes a whole list in about
+    the time of two. Its digits are the same shortest ones (Ryu); only the notation can
+    differ: ``1e-9`` or ``1e-09``, ``1e140`` or ``1e+140``, ``0.00001`` or ``1e-05``. Every
+    such text holds an ``e`` or ``0.0000``, which ``repr``'s fixed notation (1e-4 <= |x| <
+    1e16) never starts with, so those (a few in a hundred) are written again by ``repr``;
+    a false alarm (``100000.00001``) only costs that. ``tests/test_codec.py`` holds the
+    two to each other on every exponent, random bit patterns and hypothesis' floats.
+    """
+    try:
+        text = orjson.dumps(values).decode()
+    except TypeError:  # orjson.JSONEncodeError: a type it does not write
+        return None
+    if "n" in text:  # null: orjson writes NaN and infinity so; json refuses them
+        return None
+    pieces = text[1:-1].split(",") if len(text) > 2 else []
+    if len(pieces) != len(values):
+        return None
+    if "e" in text or "0.0000" in text:  # "true" and "false" too: json writes the same
+        for i, piece in enumerate(pieces):
+            if "e" in piece or "0.0000" in piece:
+                value = values[i]
+                pieces[i] = _FLOAT_REPR(value) if type(value) is float else json.dumps(value)
+    return pieces
+
+
 class FrameEncoder:
     """``derived_messages`` with the text of an unchanged part reused from the last frame.
 
@@ -250,15 +295,12 @@ class FrameEncoder:
 
     def _fragments(self, s: PartSnapshot) -> tuple[str, str, str] | None:
         name, mode = self._quoted(s.name), self._quoted(s.mode)
-        # float.__repr__ refuses anything but a float (json writes ints otherwise), and
-        # writes 'inf' or 'nan' for what json refuses: both go to the json fallback.
-        try:
-            r = list(map(_FLOAT_REPR, (*s.angular_velocity, *s.linear_velocity, *s.position,
-                                       *s.rotation_xyzw)))
-        except TypeError:
+        if not (len(s.angular_velocity) == len(s.linear_velocity) == len(s.position) == 3
+                and len(s.rotation_xyzw) == 4):
             return None
-        if len(r) != 13 or not (len(s.angular_velocity) == len(s.linear_velocity)
-                                == len(s.position) == 3) or "n" in "".join(r):
+        r = json_numbers((*s.angular_velocity, *s.linear_velocity, *s.position,
+                          *s.rotation_xyzw))
+        if r is None:
             return None
         part = (f'{{"angular_velocity":[{r[0]},{r[1]},{r[2]}],"linear_velocity":[{r[3]},{r[4]},'
                 f'{r[5]}],"mode":{mode},"name":{name},"position":[{r[6]},{r[7]},{r[8]}],'

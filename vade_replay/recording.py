@@ -45,7 +45,8 @@ VALIDATED_METADATA = "validated"
 # field damaged, its data then taken as raw bytes).
 _READ_ERRORS = (McapError, ZstdError, OSError, EOFError, ValueError, struct.error, KeyError,
                 OverflowError, MemoryError)
-PACKAGES = ("vade_replay", "numpy", "trimesh", "python-fcl", "mcap", "rerun-sdk", "jsonschema")
+PACKAGES = ("vade_replay", "numpy", "trimesh", "python-fcl", "mcap", "rerun-sdk", "jsonschema",
+            "orjson")
 
 
 def package_versions() -> dict[str, str]:
@@ -285,12 +286,12 @@ class Recording:
 
 def read_and_decode(path: str | Path) -> int:
     """The floor a replay is measured against (``vade-bench --replay``): read every record
-    of the file and ``json.loads`` every message, doing nothing with them. Returns the
-    number of messages."""
+    of the file and decode every message as a replay decodes one (``codec.parse_json``:
+    orjson), doing nothing with them. Returns the number of messages."""
     count = 0
     with open(path, "rb") as stream:
         for record in StreamReader(stream).records:
             if isinstance(record, Message):
-                json.loads(record.data)
+                codec.parse_json(record.data)
                 count += 1
     return count
