@@ -13,13 +13,15 @@ from mcap.writer import CompressionType, Writer
 def copy_recording(src: Path, dst: Path, edit: Callable[[str, int, bytes], bytes | None],
                    *, drop_attachments: tuple[str, ...] = (),
                    edit_attachment: Callable[[str, bytes], bytes] | None = None,
-                   edit_metadata: Callable[[str, dict], dict] | None = None) -> None:
+                   edit_metadata: Callable[[str, dict], dict] | None = None,
+                   use_chunking: bool = True,
+                   compression: CompressionType = CompressionType.ZSTD) -> None:
     """Copy src to dst; ``edit(topic, index_on_topic, data)`` returns new data or None to drop;
     ``edit_attachment(name, data)`` and ``edit_metadata(name, values)`` the new contents."""
     with open(src, "rb") as f_in, open(dst, "wb") as f_out:
         reader = make_reader(f_in)
         header = reader.get_header()
-        writer = Writer(f_out, compression=CompressionType.ZSTD)
+        writer = Writer(f_out, compression=compression, use_chunking=use_chunking)
         writer.start(profile=header.profile, library=header.library)
         summary = reader.get_summary()
         schema_ids, channel_ids = {}, {}

@@ -137,3 +137,70 @@ def test_a_session_validated_when_recorded_is_not_validated_again(tmp_path, monk
     assert recording.session.trusted
     with pytest.raises(SessionError, match="grab_radius"):
         recording.session.build_scene()
+
+
+# The chunk reader (recording._chunk_records) cuts messages out itself; the mcap library's
+# breakup_chunk is the reference it is held to.
+
+def _chunks(path: Path):
+    from mcap.records import Chunk
+    from mcap.stream_reader import StreamReader
+    with open(path, "rb") as stream:
+        return [r for r in StreamReader(stream, emit_chunks=True).records if isinstance(r, Chunk)]
+
+
+@pytest.mark.parametrize("golden", sorted(RECORDINGS.glob("*.mcap")), ids=lambda p: p.stem)
+def test_chunks_are_read_as_the_mcap_library_reads_them(golden):
+    from mcap.records import Channel, Message
+    from mcap.stream_reader import breakup_chunk
+    from vade_replay.recording import _chunk_records
+    chunks = _chunks(golden)
+    assert chunks
+    for chunk in chunks:
+        expected = [(r.channel_id, r.data) if isinstance(r, Message) else r
+                    for r in breakup_chunk(chunk) if isinstance(r, (Channel, Message))]
+        assert list(_chunk_records(chunk)) == expected
+
+
+@pytest.mark.parametrize("chunking, compression", [(False, "NONE"), (True, "NONE")])
+def test_a_recording_written_otherwise_by_another_mcap_writer_replays(tmp_path, chunking,
+                                                                     compression):
+    """Unchunked or uncompressed: what another tool may write reads the same."""
+    from mcap.writer import CompressionType
+    from mcap_edit import copy_recording
+    from vade_replay.replay import replay
+    golden = RECORDINGS / "drop_on_table.mcap"
+    path = tmp_path / "other.mcap"
+    copy_recording(golden, path, lambda topic, index, data: data, use_chunking=chunking,
+                   compression=getattr(CompressionType, compression))
+    read = [(f.inputs, f.derived) for f in Recording(path).frames()]
+    assert read == [(f.inputs, f.derived) for f in Recording(golden).frames()]
+    assert replay(Recording(path)).match
+
+
+def _chunk(data: bytes, crc: int | None = None):
+    import zlib
+    from mcap.records import Chunk
+    return Chunk(compression="", data=data, message_start_time=0, message_end_time=0,
+                 uncompressed_crc=zlib.crc32(data) if crc is None else crc,
+                 uncompressed_size=len(data))
+
+
+def test_a_chunk_whose_data_fails_its_crc_is_refused():
+    import struct
+    from vade_replay.recording import _READ_ERRORS, _chunk_records
+    record = struct.pack("<BQHIQQ", 5, 22 + 3, 1, 0, 0, 0) + b"abc"
+    assert list(_chunk_records(_chunk(record))) == [(1, b"abc")]
+    with pytest.raises(_READ_ERRORS, match="crc"):
+        list(_chunk_records(_chunk(record, crc=12345)))
+
+
+@pytest.mark.parametrize("record", [
+    b"\x05" + (1000).to_bytes(8, "little") + bytes(30),   # runs past the chunk
+    b"\x05" + (10).to_bytes(8, "little") + bytes(10),     # shorter than a message head
+    b"\x05\x01\x00",                                      # a record head cut short
+])
+def test_a_malformed_record_in_a_chunk_is_a_read_error(record):
+    from vade_replay.recording import _READ_ERRORS, _chunk_records
+    with pytest.raises(_READ_ERRORS):
+        list(_chunk_records(_chunk(record)))
