@@ -126,6 +126,20 @@ def test_whole_numbers_are_the_floats_they_stand_for():
     assert info.value.field == "physics.release_window" and info.value.file == "s.json"
 
 
+def test_the_float_and_int_fields_of_physics_are_those_its_source_annotates():
+    """Read from the source text, which both builds share (compiled, the annotations a
+    dataclass field reports are types, not this text)."""
+    import ast
+    from vade_replay import scene
+    tree = ast.parse((Path(native.__file__).parent / "scene.py").read_text())
+    physics = next(n for n in tree.body if isinstance(n, ast.ClassDef) and n.name == "Physics")
+    annotated = {n.target.id: ast.unparse(n.annotation) for n in physics.body
+                 if isinstance(n, ast.AnnAssign)}
+    assert scene.FLOAT_FIELDS == {k for k, v in annotated.items() if v in ("float",
+                                                                        "float | None")}
+    assert scene.INT_FIELDS == {k for k, v in annotated.items() if v == "int"}
+
+
 def test_every_module_listed_exists_and_is_compiled_when_any_is():
     for path in native.MODULES:
         assert (Path(native.__file__).parents[1] / path).is_file(), path

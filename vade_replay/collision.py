@@ -203,7 +203,8 @@ class CollisionWorld:
         if not d > 0.0:
             return None
         on_part, on_base = result.nearest_points
-        gap = sp.sub(tuple(float(x) for x in on_part), tuple(float(x) for x in on_base))
+        gap = sp.sub((float(on_part[0]), float(on_part[1]), float(on_part[2])),
+                     (float(on_base[0]), float(on_base[1]), float(on_base[2])))
         return sp.normalize(gap) if sp.norm(gap) > 0.0 else None
 
     def environment_near(self, center: sp.Vec3, radius: float) -> tuple[int, ...]:

@@ -37,6 +37,8 @@ MODULES = (
     "vade_replay/codec.py",
     "vade_replay/state.py",
     "vade_replay/frames.py",
+    "vade_replay/scene.py",
+    "vade_replay/collision.py",
 )
 PURE_ENV = "VADE_REPLAY_PURE"
 # Set by CI: a build that cannot compile fails instead of installing pure Python, and the

@@ -168,7 +168,8 @@ def pose_from_doc(doc: dict | None, length_factor: float, *, where: str, file: s
     position = _vec(doc.get("position", (0.0, 0.0, 0.0)), length_factor)
     if "xyzw" in doc:
         try:
-            rotation = sp.quat_normalize(tuple(float(v) for v in doc["xyzw"]))
+            x, y, z, w = (float(v) for v in doc["xyzw"])
+            rotation = sp.quat_normalize((x, y, z, w))
         except ValueError as exc:
             raise SessionError(str(exc), file=file, field=f"{where}.xyzw") from None
     elif "euler_deg" in doc:
@@ -189,8 +190,8 @@ def _gear_mesh(radius: float, height: float, teeth: int, tooth_depth: float,
         r = radius if phase < 0.5 else radius - tooth_depth
         outer.append((r * math.cos(a), r * math.sin(a)))
     z0, z1 = -0.5 * height, 0.5 * height
-    vertices = []
-    faces = []
+    vertices: list[tuple[float, float, float]] = []
+    faces: list[tuple[int, int, int]] = []
     if inner_radius:
         inner = [(inner_radius * math.cos(a), inner_radius * math.sin(a)) for a in angles]
         # Rings: outer bottom, outer top, inner bottom, inner top.
@@ -235,7 +236,8 @@ def _mesh_from_shape(shape: dict, length_factor: float, files: dict[str, bytes],
             matrix[:3, 3] = pose.position
             mesh.apply_transform(matrix)
             meshes.append(mesh)
-        return trimesh.util.concatenate(meshes)
+        combined: trimesh.Trimesh = trimesh.util.concatenate(meshes)  # type: ignore[assignment]
+        return combined
     if kind == "box":
         return trimesh.creation.box(extents=[v * f for v in shape["size"]])
     sections = int(shape.get("sections", 48))
@@ -423,6 +425,14 @@ def _assembly(doc: dict, part: Body, base: Body, physics: Physics, f: float, *, 
         final_angle=math.radians(float(final_tol.get("angle_deg", cn.DEFAULT_FINAL_ANGLE_DEG))))
 
 
+# The fields of Physics that hold a float and an int, from their defaults: annotations are
+# text in the Python sources and types in the compiled build (tests/test_session.py holds
+# these to the annotations).
+FLOAT_FIELDS = frozenset([f.name for f in fields(Physics) if type(f.default) is float]
+                         + ["onbase_max_step_s", "turn_max_step_s", "slide_max_step_s"])
+INT_FIELDS = frozenset(f.name for f in fields(Physics) if type(f.default) is int)
+
+
 def physics_from_doc(doc: dict, length_factor: float, *, file: str | None = None) -> Physics:
     """Physics from a session's ``physics`` block, lengths converted to metres."""
     values = dict(doc)
@@ -439,15 +449,14 @@ def physics_from_doc(doc: dict, length_factor: float, *, file: str | None = None
     # count written as a float ("release_window": 7.0, which JSON Schema calls an integer)
     # is that int: the simulation sees the same value whichever way it was written, and
     # the compiled build (which checks the types) the same as the Python sources.
-    for f in fields(Physics):
-        value = values.get(f.name)
-        if f.type in ("float", "float | None") and type(value) is int:
-            values[f.name] = float(value)
-        elif f.type == "int" and type(value) is float:
-            if not value.is_integer():
-                raise SessionError(f"must be a whole number, got {value!r}", file=file,
-                                   field=f"physics.{f.name}")
-            values[f.name] = int(value)
+    for name, given in list(values.items()):
+        if name in FLOAT_FIELDS and type(given) is int:
+            values[name] = float(given)
+        elif name in INT_FIELDS and type(given) is float:
+            if not given.is_integer():
+                raise SessionError(f"must be a whole number, got {given!r}", file=file,
+                                   field=f"physics.{name}")
+            values[name] = int(given)
     return Physics(**values)
 
 
