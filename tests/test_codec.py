@@ -197,3 +197,23 @@ def test_a_changed_frame_lists_only_what_moved_and_a_new_second_lists_all():
     new_second = _json.loads(encoder.derived_messages(
         FrameRecord(TrackerFrame(60, 10**9, ()), None, (a, b2)))[0][1])
     assert new_second["complete"] is True and len(new_second["parts"]) == 2
+
+
+@pytest.mark.parametrize("compiled_branch", [True, False])
+@settings(max_examples=100, deadline=None, derandomize=True)
+@given(st.lists(st.integers(0, 3), max_size=40), st.lists(st.integers(0, 3), max_size=40))
+def test_changed_indices_both_branches_name_the_other_objects(compiled_branch, a, b):
+    """Whichever branch a build runs (frames._COMPILED), the same answer: by identity."""
+    from vade_replay import frames
+    pool = [object() for _ in range(4)]
+    new, old = tuple(pool[i] for i in a), tuple(pool[i] for i in b)
+    saved = frames._COMPILED
+    frames._COMPILED = compiled_branch
+    try:
+        got = frames.changed_indices(new, old)
+    finally:
+        frames._COMPILED = saved
+    expected = list(range(len(new))) if len(new) != len(old) \
+        else [i for i in range(len(new)) if new[i] is not old[i]]
+    assert got == expected
+    assert frames.changed_indices(new, None) == list(range(len(new)))

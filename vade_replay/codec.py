@@ -268,15 +268,15 @@ class FrameEncoder:
             raise ValueError(f"parts encoding must be one of {PARTS_ENCODINGS}")
         self.parts = parts
         self._time_ns: int | None = None  # the last frame's time (key frames)
-        self._last: list = []             # the last frame's snapshots, base first
+        self._last: tuple = ()            # the last frame's snapshots, base first
         self._names: dict[str, str] = {}
-        self._items: list = []       # the snapshots whose texts are cached: base first
+        self._items: tuple = ()      # the snapshots whose texts are cached: base first
         self._texts: list[str] = []  # each item's /parts object
         self._heads: list[str] = []  # each item's transform up to its timestamp
         self._tails: list[str] = []  # and after it
         self._glue: list[str] = []   # heads[0], tails[0] + "," + heads[1], ..., tails[-1]
 
-    def _fallback(self, record: FrameRecord, previous_items: list,
+    def _fallback(self, record: FrameRecord, previous_items: tuple,
                   previous_time: int | None) -> list[tuple[str, bytes]]:
         """The reference encoder, for what the fast path does not cover."""
         if self.parts == PARTS_FULL:
@@ -317,13 +317,13 @@ class FrameEncoder:
         n = len(items)
         # The last frame's snapshots and time decide what a ``changed`` frame lists;
         # ``self._items`` only says which cached texts are still good.
-        previous_items, self._last = self._last, list(items)
+        previous_items, self._last = self._last, items
         previous_time, self._time_ns = self._time_ns, t if type(t) is int else None
         if type(frame) is not int or type(t) is not int or n == 0:
-            self._items = []
+            self._items = ()
             return self._fallback(record, previous_items, previous_time)
         if len(self._items) != n:
-            self._items = [None] * n
+            self._items = (None,) * n
             self._texts, self._heads, self._tails = [""] * n, [""] * n, [""] * n
             self._glue = [""] * (n + 1)
         texts, heads, tails, glue = self._texts, self._heads, self._tails, self._glue
@@ -331,12 +331,12 @@ class FrameEncoder:
         for i in changed:
             fragments = self._fragments(items[i])
             if fragments is None:
-                self._items = []
+                self._items = ()
                 return self._fallback(record, previous_items, previous_time)
             texts[i], heads[i], tails[i] = fragments
             glue[i] = heads[i] if i == 0 else tails[i - 1] + "," + heads[i]
             glue[i + 1] = tails[i] if i == n - 1 else tails[i] + "," + heads[i + 1]
-        self._items = self._last  # neither list is changed in place: one copy serves
+        self._items = items  # tuples: never changed in place
         sec, nsec = divmod(t, 10**9)
         stamp = f'{{"nsec":{nsec},"sec":{sec}}}'
         first = 0 if record.base is None else 1

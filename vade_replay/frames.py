@@ -8,7 +8,6 @@ consumer (replay check, rerun review, analysis). They hold plain Python values
 from __future__ import annotations
 
 from dataclasses import dataclass
-from collections.abc import Sequence
 from itertools import compress
 from operator import is_not
 
@@ -107,10 +106,23 @@ class FrameRecord:
         return self.inputs.time_ns
 
 
-def changed_indices(new: Sequence, old: Sequence | None) -> list[int]:
+def changed_indices(new: tuple, old: tuple | None) -> list[int]:
     """Indices at which ``new`` holds another object than ``old`` (all, if the lengths
     differ). Snapshots of parts nothing moved are the same objects frame after frame
-    (``step.frame_record``), so consumers look only at these; the scan runs in C."""
+    (``step.frame_record``), so consumers look only at these."""
     if old is None or len(old) != len(new):
         return list(range(len(new)))
+    if _COMPILED:
+        # A C loop: 0.6 us for 200 parts, where compress/map is 4.5 us compiled.
+        out: list[int] = []
+        for i in range(len(new)):
+            if new[i] is not old[i]:
+                out.append(i)
+        return out
+    # As Python, the scan in C: 4.5 us for 200 parts, where the loop is ~8 us.
     return list(compress(range(len(new)), map(is_not, new, old)))
+
+
+# Whether this module runs compiled (its file is then the extension module, not the source);
+# a module flag, so that a test can run the other branch too.
+_COMPILED = not __file__.endswith(".py")

@@ -95,15 +95,19 @@ def referenced_files(doc: dict) -> dict[str, str]:
     found: dict[str, str] = {}
 
     def walk(value, where: str) -> None:
+        # Into containers only: a 200-part session has thousands of numbers, and a path
+        # string made for each cost milliseconds of every replay's setup.
         if isinstance(value, dict):
             for key in sorted(value):
-                if key in ("file", "csv") and isinstance(value[key], str):
-                    found.setdefault(value[key], f"{where}.{key}")
-                else:
-                    walk(value[key], f"{where}.{key}")
+                item = value[key]
+                if key in ("file", "csv") and isinstance(item, str):
+                    found.setdefault(item, f"{where}.{key}")
+                elif isinstance(item, (dict, list)):
+                    walk(item, f"{where}.{key}")
         elif isinstance(value, list):
             for index, item in enumerate(value):
-                walk(item, f"{where}[{index}]")
+                if isinstance(item, (dict, list)):
+                    walk(item, f"{where}[{index}]")
 
     for key in ("parts", "base", "environment", "tracker"):
         if key in doc:
