@@ -12,7 +12,7 @@ import pytest
 from conftest import RECORDINGS
 from vade_replay.bench import replay as replay_bench
 from vade_replay.cli import bench
-from vade_replay.recording import Recording, read_and_decode
+from vade_replay.recording import Recording, library_read_and_decode, read_and_decode
 
 
 @pytest.fixture(scope="module")
@@ -71,7 +71,7 @@ def test_read_and_decode_reads_every_message():
     frames = list(Recording(path).frames())
     messages = sum(1 + len(f.derived) for f in frames)
     assert read_and_decode(path) == messages
-    assert replay_bench.library_read_and_decode(path) == messages
+    assert library_read_and_decode(path) == messages
 
 
 def test_the_synthetic_session_exercises_every_kind_of_motion():

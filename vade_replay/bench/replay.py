@@ -30,7 +30,7 @@ from pathlib import Path
 
 from .. import native
 from ..collision import CollisionWorld
-from ..recording import Recording, read_and_decode
+from ..recording import Recording, library_read_and_decode, read_and_decode
 from ..replay import record, replay, simulate
 from ..session import load, parse
 from . import report
@@ -53,20 +53,6 @@ def _interleaved(fns, repeats: int) -> list[float]:
             fn()
             best[i] = min(best[i], time.perf_counter() - t0)
     return best
-
-
-def library_read_and_decode(path: Path) -> int:
-    """The floor of the figures before this version: every record read by the mcap
-    library's ``StreamReader``, every message ``json.loads``-ed."""
-    from mcap.records import Message
-    from mcap.stream_reader import StreamReader
-    count = 0
-    with open(path, "rb") as stream:
-        for record in StreamReader(stream).records:
-            if isinstance(record, Message):
-                json.loads(record.data)
-                count += 1
-    return count
 
 
 def _session(doc: dict):
