@@ -19,7 +19,8 @@ from hypothesis import strategies as st
 
 from vade_replay import codec
 from vade_replay.events import ModeChanged
-from vade_replay.frames import FrameRecord, PartSnapshot, TrackerFrame, changed_indices
+from vade_replay.frames import (DeviceSample, FrameRecord, PartSnapshot, TrackerFrame,
+                                changed_indices)
 
 finite = st.one_of(st.floats(allow_nan=False, allow_infinity=False),
                    st.sampled_from([0.0, -0.0, 5e-324, -1e-310, 1e300, 0.1, 1 / 3]))
@@ -217,3 +218,36 @@ def test_changed_indices_both_branches_name_the_other_objects(compiled_branch, a
         else [i for i in range(len(new)) if new[i] is not old[i]]
     assert got == expected
     assert frames.changed_indices(new, None) == list(range(len(new)))
+
+
+@st.composite
+def tracker_frames(draw, values=number):
+    vec = st.tuples(values, values, values)
+    quat = st.tuples(values, values, values, values)
+    devices = draw(st.lists(st.tuples(names, st.builds(DeviceSample, vec, quat,
+                                                         st.sampled_from([None, True, False]))),
+                            max_size=4))
+    if draw(st.booleans()):
+        devices.sort(key=lambda d: d[0])  # the usual case: sorted, as a stream makes them
+    return TrackerFrame(draw(st.integers(0, 10**6)), draw(st.integers(0, 10**13)),
+                        tuple(devices))
+
+
+@settings(max_examples=300, deadline=None, derandomize=True)
+@given(tracker_frames())
+def test_tracker_messages_are_the_reference_bytes(frame):
+    """Sorted or not, repeated names, any numbers: json.dumps' bytes, or its error."""
+    try:
+        expected = codec.dumps(codec.encode_tracker(frame))
+    except ValueError:
+        with pytest.raises(ValueError):
+            codec.tracker_message(frame)
+        return
+    assert codec.tracker_message(frame) == expected
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf])
+def test_tracker_messages_refuse_what_json_refuses(bad):
+    frame = TrackerFrame(0, 0, (("head", DeviceSample((0.0, bad, 0.0), (0.0, 0.0, 0.0, 1.0))),))
+    with pytest.raises(ValueError):
+        codec.tracker_message(frame)

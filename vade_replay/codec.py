@@ -71,6 +71,41 @@ def encode_tracker(frame: TrackerFrame) -> dict:
     }
 
 
+_QUOTED: dict[str, str] = {}  # device names as JSON strings (a handful per session)
+
+
+def tracker_message(frame: TrackerFrame) -> bytes:
+    """``dumps(encode_tracker(frame))``, the same bytes (``tests/test_codec.py``), written
+    directly, numbers by ``json_numbers``: ~5x cheaper, for the recorder. Anything the
+    direct path does not cover goes through ``json`` and its errors."""
+    if type(frame.frame) is not int or type(frame.time_ns) is not int:
+        return dumps(encode_tracker(frame))
+    devices: list[str] = []
+    last = ""
+    for name, sample in frame.devices:
+        # Names in strictly increasing order, as sort_keys writes them (and no repeats,
+        # which a dict would merge).
+        if type(name) is not str or (devices and name <= last):
+            return dumps(encode_tracker(frame))
+        last = name
+        grip = sample.grip
+        g = "null" if grip is None else "true" if grip is True else "false" \
+            if grip is False else ""
+        n = json_numbers((*sample.position, *sample.rotation_xyzw)) \
+            if len(sample.position) == 3 and len(sample.rotation_xyzw) == 4 else None
+        if n is None or not g:
+            return dumps(encode_tracker(frame))
+        quoted = _QUOTED.get(name)
+        if quoted is None:
+            quoted = json.dumps(name)
+            if len(_QUOTED) < 1024:
+                _QUOTED[name] = quoted
+        devices.append(f'{quoted}:{{"grip":{g},"position":[{n[0]},{n[1]},{n[2]}],'
+                       f'"xyzw":[{n[3]},{n[4]},{n[5]},{n[6]}]}}')
+    return (f'{{"devices":{{{",".join(devices)}}},"frame":{frame.frame},'
+            f'"time_ns":{frame.time_ns}}}').encode()
+
+
 def _vec(value, n: int, *, topic: str, field: str, frame: int | None) -> tuple:
     # Fast path: what this encoder writes (floats); the sum is finite only if every term is.
     if type(value) is list and len(value) == n and all(type(v) is float for v in value) \

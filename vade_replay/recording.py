@@ -176,7 +176,7 @@ class RecordingWriter:
                     derived: list[tuple[str, bytes]] | None = None) -> None:
         """Write a frame's tracker input and its derived messages."""
         t = record.time_ns
-        self._add(codec.TRACKER_TOPIC, t, codec.dumps(codec.encode_tracker(record.inputs)))
+        self._add(codec.TRACKER_TOPIC, t, codec.tracker_message(record.inputs))
         if derived is None:
             derived = self._encoder.derived_messages(record)
         for topic, data in derived:
