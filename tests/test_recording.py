@@ -204,3 +204,24 @@ def test_a_malformed_record_in_a_chunk_is_a_read_error(record):
     from vade_replay.recording import _READ_ERRORS, _chunk_records
     with pytest.raises(_READ_ERRORS):
         list(_chunk_records(_chunk(record)))
+
+
+def test_a_channel_record_cut_short_inside_a_chunk_is_damage_not_the_end_of_the_file():
+    import struct
+    from mcap.exceptions import EndOfFile
+    from vade_replay.recording import _READ_ERRORS, _chunk_records
+    record = struct.pack("<BQ", 4, 10) + bytes(10)  # a channel record of 10 bytes: too short
+    with pytest.raises(_READ_ERRORS) as info:
+        list(_chunk_records(_chunk(record)))
+    assert not isinstance(info.value, EndOfFile)  # frames() would call that "cut short"
+
+
+def test_a_damaged_lz4_chunk_is_a_read_error():
+    """With lz4 installed, its damage is a RuntimeError; without, the compression is
+    unsupported: a read error (exit 2 naming the file) either way, never a traceback."""
+    from mcap.records import Chunk
+    from vade_replay.recording import _READ_ERRORS, _chunk_records
+    chunk = Chunk(compression="lz4", data=b"\x04\x22\x4d\x18garbage", message_start_time=0,
+                  message_end_time=0, uncompressed_crc=0, uncompressed_size=100)
+    with pytest.raises(_READ_ERRORS):
+        list(_chunk_records(chunk))

@@ -43,8 +43,9 @@ def parse_json(data: bytes):
     float64 for every number: both round correctly), and by ``json`` what ``orjson``
     refuses (``NaN``, a number past float64's range, lone surrogates), so that the checks
     after name the field, not the parser. One difference is left: an integer past 64 bits
-    ``orjson`` reads as a float; no field takes one (the numbers of a pose are bounded,
-    frame and time fit MCAP's 64 bits), and either way it is refused, naming the field."""
+    ``orjson`` reads as a float, ``json`` as an int. No field takes one: the numbers of a
+    pose are bounded, and ``decode_tracker`` checks that frame and time fit 64 bits, so
+    either reading is refused, naming the field."""
     try:
         return orjson.loads(data)
     except orjson.JSONDecodeError:
@@ -155,10 +156,15 @@ def _decode_devices_fast(devices: dict) -> tuple | None:
 def decode_tracker(data: bytes) -> TrackerFrame:
     """A recorded tracker frame; a malformed one raises ``RecordingError`` naming the field."""
     value = loads(data, topic=TRACKER_TOPIC)
-    frame = value.get("frame")
-    if type(frame) is not int or type(value.get("time_ns")) is not int:
+    frame, time_ns = value.get("frame"), value.get("time_ns")
+    if type(frame) is not int or type(time_ns) is not int:
         raise RecordingError("tracker message lacks integer frame/time_ns",
                              field=TRACKER_TOPIC, frame=frame if type(frame) is int else None)
+    # What MCAP's 64-bit times and a frame counter hold; checked here, not left to a
+    # parser's reading of an oversized integer.
+    if not (0 <= frame < 2**63 and 0 <= time_ns < 2**64):
+        raise RecordingError(f"tracker frame {frame} / time_ns {time_ns} out of range "
+                             "(0 to 2**63 and 2**64)", field=f"{TRACKER_TOPIC} frame/time_ns")
     devices = value.get("devices")
     if not isinstance(devices, dict):
         raise RecordingError("tracker message lacks devices", field=TRACKER_TOPIC, frame=frame)

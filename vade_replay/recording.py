@@ -66,7 +66,10 @@ def _chunk_records(chunk: Chunk) -> Iterator[Channel | tuple[int, bytes]]:
     The layout is MCAP's Message record: opcode 0x05, u64 length, u16 channel id, u32
     sequence, u64 log time, u64 publish time, then the data to the end of the record.
     """
-    stream, size = get_chunk_data_stream(chunk, validate_crc=True)
+    try:
+        stream, size = get_chunk_data_stream(chunk, validate_crc=True)
+    except RuntimeError as exc:  # lz4 (when installed) reports damage so
+        raise McapError(f"the chunk cannot be decompressed ({exc})") from None
     data = stream.read(size)
     at = 0
     while at < size:
@@ -81,7 +84,11 @@ def _chunk_records(chunk: Chunk) -> Iterator[Channel | tuple[int, bytes]]:
             yield _MESSAGE_HEAD.unpack_from(data, start)[0], \
                 data[start + _MESSAGE_HEAD.size:at]
         elif opcode == Opcode.CHANNEL:
-            yield Channel.read(ReadDataStream(BytesIO(data[start:at])))
+            try:
+                channel = Channel.read(ReadDataStream(BytesIO(data[start:at])))
+            except EndOfFile:  # inside a chunk that is damage, not a file cut short
+                raise McapError("a channel record in a chunk is cut short") from None
+            yield channel
         # Schemas and any record type this version does not know: skipped, as MCAP says.
 
 
