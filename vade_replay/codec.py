@@ -72,7 +72,17 @@ def encode_tracker(frame: TrackerFrame) -> dict:
     }
 
 
-_QUOTED: dict[str, str] = {}  # device names as JSON strings (a handful per session)
+_QUOTED: dict[str, str] = {}  # names and modes as JSON strings (a few dozen per session)
+
+
+def json_string(text: str) -> str:
+    """``json.dumps(text)``, remembered: part, mode and device names recur every frame."""
+    quoted = _QUOTED.get(text)
+    if quoted is None:
+        quoted = json.dumps(text)
+        if len(_QUOTED) < 4096:
+            _QUOTED[text] = quoted
+    return quoted
 
 
 def tracker_message(frame: TrackerFrame) -> bytes:
@@ -96,12 +106,7 @@ def tracker_message(frame: TrackerFrame) -> bytes:
             if len(sample.position) == 3 and len(sample.rotation_xyzw) == 4 else None
         if n is None or not g:
             return dumps(encode_tracker(frame))
-        quoted = _QUOTED.get(name)
-        if quoted is None:
-            quoted = json.dumps(name)
-            if len(_QUOTED) < 1024:
-                _QUOTED[name] = quoted
-        devices.append(f'{quoted}:{{"grip":{g},"position":[{n[0]},{n[1]},{n[2]}],'
+        devices.append(f'{json_string(name)}:{{"grip":{g},"position":[{n[0]},{n[1]},{n[2]}],'
                        f'"xyzw":[{n[3]},{n[4]},{n[5]},{n[6]}]}}')
     return (f'{{"devices":{{{",".join(devices)}}},"frame":{frame.frame},'
             f'"time_ns":{frame.time_ns}}}').encode()
@@ -310,7 +315,6 @@ class FrameEncoder:
         self.parts = parts
         self._time_ns: int | None = None  # the last frame's time (key frames)
         self._last: tuple = ()            # the last frame's snapshots, base first
-        self._names: dict[str, str] = {}
         self._items: tuple = ()      # the snapshots whose texts are cached: base first
         self._texts: list[str] = []  # each item's /parts object
         self._heads: list[str] = []  # each item's transform up to its timestamp
@@ -328,14 +332,8 @@ class FrameEncoder:
         return derived_messages(record, parts=PARTS_CHANGED, previous_parts=previous,
                                 previous_time_ns=previous_time)
 
-    def _quoted(self, text: str) -> str:
-        quoted = self._names.get(text)
-        if quoted is None:
-            quoted = self._names[text] = json.dumps(text)
-        return quoted
-
     def _fragments(self, s: PartSnapshot) -> tuple[str, str, str] | None:
-        name, mode = self._quoted(s.name), self._quoted(s.mode)
+        name, mode = json_string(s.name), json_string(s.mode)
         if not (len(s.angular_velocity) == len(s.linear_velocity) == len(s.position) == 3
                 and len(s.rotation_xyzw) == 4):
             return None
