@@ -134,6 +134,7 @@ class Body:
     radius_about_cm: float          # farthest vertex from the CM
     bbox_min: sp.Vec3               # part frame
     bbox_max: sp.Vec3
+    reach_from_origin: float        # the box's farthest corner from the part frame's origin
     initial_pose: sp.Pose
     initial_mode: Mode
     color: tuple[int, ...] | None = None
@@ -337,12 +338,13 @@ def _body(doc: dict, length_factor: float, files: dict[str, bytes], *, where: st
         if shapes is not None:
             shapes[key] = made
     vertices, faces, props, moments, part_from_principal, radius = made
+    lo, hi = _vec(vertices.min(axis=0)), _vec(vertices.max(axis=0))
     return Body(
         name=doc["name"], vertices=vertices, faces=faces, mass_kg=props.mass_kg,
         center_of_mass=props.center_of_mass, inertia_cm=props.inertia_cm,
         principal_moments=moments, part_from_principal=part_from_principal,
-        radius_about_cm=radius, bbox_min=_vec(vertices.min(axis=0)),
-        bbox_max=_vec(vertices.max(axis=0)),
+        radius_about_cm=radius, bbox_min=lo, bbox_max=hi,
+        reach_from_origin=math.sqrt(sum(max(-a, b) ** 2 for a, b in zip(lo, hi))),
         initial_pose=pose_from_doc(doc.get("pose"), length_factor, where=f"{where}.pose",
                                    file=file),
         initial_mode=mode, color=tuple(doc["color"]) if "color" in doc else None)

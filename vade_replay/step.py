@@ -211,9 +211,7 @@ def _grab(f: _Frame, hand: str) -> None:
         if part.mode not in _GRABBABLE:
             continue
         # Bounding sphere about the part frame's origin first: most parts are far away.
-        body = f.scene.parts[index]
-        lo, hi = body.bbox_min, body.bbox_max
-        reach = math.sqrt(sum(max(-a, b) ** 2 for a, b in zip(lo, hi))) + physics.grab_radius
+        reach = f.scene.parts[index].reach_from_origin + physics.grab_radius
         px, py, pz = part.pose.position
         stats["bounding_tests"] += 1
         if (px - hx) ** 2 + (py - hy) ** 2 + (pz - hz) ** 2 > reach * reach:
