@@ -113,7 +113,7 @@ def changed_indices(new: tuple, old: tuple | None) -> list[int]:
     if old is None or len(old) != len(new):
         return list(range(len(new)))
     if _COMPILED:
-        # A C loop: 0.6 us for 200 parts, where compress/map is 4.5 us compiled.
+        # A C loop: 0.5 us for 200 parts, where compress/map is 4.5 us compiled.
         out: list[int] = []
         for i in range(len(new)):
             if new[i] is not old[i]:

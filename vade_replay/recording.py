@@ -62,7 +62,7 @@ def _chunk_records(chunk: Chunk) -> Iterator[Channel | tuple[int, bytes]]:
     The mcap library decompresses the chunk and checks its CRC (a damaged chunk is then
     an error, not a replay that diverges), and reads its channels. Messages, nearly every
     record, are cut out here with one ``struct`` call each: the library's ``breakup_chunk``
-    reads them field by field in Python, ~4 us a message, a sixth of a replayed frame.
+    reads them field by field in Python, ~4 us a message, three a frame.
     The layout is MCAP's Message record: opcode 0x05, u64 length, u16 channel id, u32
     sequence, u64 log time, u64 publish time, then the data to the end of the record.
     """

@@ -428,7 +428,7 @@ def _assembly(doc: dict, part: Body, base: Body, physics: Physics, f: float, *, 
 
 
 # The fields of Physics that hold a float and an int, from their defaults: annotations are
-# text in the Python sources and types in the compiled build (tests/test_session.py holds
+# text in the Python sources and types in the compiled build (tests/test_native.py holds
 # these to the annotations).
 FLOAT_FIELDS = frozenset([f.name for f in fields(Physics) if type(f.default) is float]
                          + ["onbase_max_step_s", "turn_max_step_s", "slide_max_step_s"])

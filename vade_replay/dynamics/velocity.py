@@ -34,7 +34,8 @@ MIN_INTERVAL_NS = 500_000
 
 # Samples travel as plain Python tuples (``tuple``, ``list``: items typed Any). Typed as
 # ``Sample``, the compiled build would unpack every one into a C struct and build it again
-# as a new tuple of new floats wherever it is stored: 2.5x slower than as Python.
+# as a new tuple of new floats wherever it is stored (``_distinct``: 2.5x slower than as
+# Python).
 def _distinct(history: tuple) -> list:
     """Oldest first; of samples closer together than MIN_INTERVAL_NS, only the newest."""
     out: list = []
