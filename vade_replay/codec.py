@@ -175,20 +175,12 @@ def decode_tracker(data: bytes) -> TrackerFrame:
         raise RecordingError("tracker message lacks devices", field=TRACKER_TOPIC, frame=frame)
     fast = _decode_devices_fast(devices)
     if fast is not None:
-        return TrackerFrame(frame, value["time_ns"], fast)
+        return TrackerFrame(frame, time_ns, fast)
+    # Something in it is not what this encoder writes: each device checked on its own, so
+    # that the error names it (``_vec`` keeps a fast path for the devices that are).
     samples: list[tuple[str, DeviceSample]] = []
     for name in sorted(devices):
         d = devices[name]
-        # Fast path: what this encoder writes (3 + 4 finite floats, a bool or null grip).
-        if type(d) is dict:
-            pos, rot, grip = d.get("position"), d.get("xyzw"), d.get("grip")
-            if type(pos) is list and type(rot) is list and len(pos) == 3 and len(rot) == 4 \
-                    and (grip is None or grip is True or grip is False):
-                values = pos + rot
-                if set(map(type, values)) == _FLOAT_ONLY and math.isfinite(sum(values, 0.0)) \
-                        and max(map(abs, values)) <= MAX_ABS_POSITION_M:
-                    samples.append((name, DeviceSample(tuple(pos), tuple(rot), grip)))
-                    continue
         if not isinstance(d, dict):
             raise RecordingError(f"device {name} is not an object", field=TRACKER_TOPIC,
                                  frame=frame)
@@ -200,7 +192,7 @@ def decode_tracker(data: bytes) -> TrackerFrame:
             _vec(d.get("position"), 3, topic=TRACKER_TOPIC, field=f"{name}.position", frame=frame),
             _vec(d.get("xyzw"), 4, topic=TRACKER_TOPIC, field=f"{name}.xyzw", frame=frame),
             grip)))
-    return TrackerFrame(frame, value["time_ns"], tuple(samples))
+    return TrackerFrame(frame, time_ns, tuple(samples))
 
 
 def _snapshot(s: PartSnapshot) -> dict:
