@@ -124,3 +124,24 @@ def test_records_handed_on_are_not_changed_later():
         seen.append(repr(record))
     assert len(records) > 100
     assert [repr(r) for r in records] == seen
+
+
+def test_snapshots_compare_as_the_dataclass_would():
+    """``PartSnapshot.__eq__`` is written out (compiled, the generated one runs as Python);
+    it must answer what the generated one does: the fields compared as a tuple (so -0.0
+    equals 0.0), and not equal to anything else. (No NaN reaches a snapshot: the step
+    stops a part whose numbers are not finite.)"""
+    base = ("gear", "INSPACE", (0.0, 1.0, 2.0), (0.0, 0.0, 0.0, 1.0), (0.5, 0.0, 0.0),
+            (0.0, 0.0, 3.0))
+    variants = [base,
+                (*base[:2], (-0.0, 1.0, 2.0), *base[3:]),              # -0.0 == 0.0
+                ("gear2", *base[1:]), (base[0], "STATIC", *base[2:]),
+                (*base[:3], (0.0, 0.0, 1e-300, 1.0), *base[4:]),
+                (*base[:4], (0.5, 5e-324, 0.0), base[5]),
+                (*base[:5], (0.0, 0.0, 3.0000000000000004))]
+    for a in variants:
+        for b in variants:
+            got = frames.PartSnapshot(*a) == frames.PartSnapshot(*b)
+            assert got == (a == b), (a, b)
+            assert (frames.PartSnapshot(*a) != frames.PartSnapshot(*b)) == (a != b)
+    assert frames.PartSnapshot(*base) != base and not frames.PartSnapshot(*base) == 3

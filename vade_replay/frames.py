@@ -80,6 +80,19 @@ class PartSnapshot:
         self.linear_velocity = linear_velocity
         self.angular_velocity = angular_velocity
 
+    def __eq__(self, other: object) -> bool:
+        # The comparison the dataclass would generate (the fields in order, each as a tuple
+        # compares them: -0.0 == 0.0), written out because the generated one runs as
+        # interpreted Python even when compiled; the encoder compares each moving part
+        # with last frame's (codec.FrameEncoder).
+        if type(other) is not PartSnapshot:
+            return NotImplemented
+        return (self.name == other.name and self.mode == other.mode
+                and self.position == other.position
+                and self.rotation_xyzw == other.rotation_xyzw
+                and self.linear_velocity == other.linear_velocity
+                and self.angular_velocity == other.angular_velocity)
+
 
 @dataclass(slots=True)
 class FrameRecord:
