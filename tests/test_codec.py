@@ -13,6 +13,7 @@ import math
 from dataclasses import replace
 
 import numpy as np
+import orjson
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -94,6 +95,28 @@ def test_number_texts_are_json_s_on_every_decimal_exponent_and_notation_boundary
     for start in range(0, len(values), 13):
         chunk = tuple(values[start:start + 13])
         assert codec.json_numbers(chunk) == _json_texts(chunk), chunk
+
+
+def test_repr_text_rewrites_orjson_s_notation_as_repr_writes_it():
+    """``_repr_text`` turns orjson's text of any finite float into ``repr``'s, whether it
+    rewrites the text or calls ``repr``: every decimal exponent, the neighbours of the
+    notation boundaries, and random bit patterns."""
+    rng = np.random.default_rng(8)
+    values = [float(f"{m!r}e{e}") for e in range(-324, 309)
+              for m in (1.0, 1.5, 9.999999999999998, *rng.uniform(1.0, 10.0, 4).tolist())]
+    for edge in (1e-5, 1e-4, 1e-9, 1e-10, 1e16):
+        values += [math.nextafter(edge, 0.0), edge, math.nextafter(edge, math.inf)]
+    bits = rng.integers(0, 2**64, size=20_000, dtype=np.uint64)
+    values += [float(v) for v in bits.view(np.float64)]
+    values += [1e-5 * (1.0 + i / 1000.0) for i in range(9000)]  # 1e-5 to 1e-4
+    values += [1e-9 * (1.0 + i / 1000.0) for i in range(9000)]  # 1e-9 to 1e-8
+    forms = {"e-N": 0, "0.0000": 0}
+    for value in (v for x in values for v in (x, -x) if math.isfinite(x)):
+        text = orjson.dumps(value).decode()
+        assert codec._repr_text(text, value) == repr(value), (text, value)
+        if text != repr(value):
+            forms["0.0000" if "0.0000" in text else "e-N"] += 1
+    assert min(forms.values()) > 1000, forms  # both rewritings exercised, not only repr
 
 
 def test_number_texts_are_json_s_for_random_bit_patterns():

@@ -260,6 +260,26 @@ def derived_messages(record: FrameRecord, *, parts: str = PARTS_FULL,
 _FLOAT_REPR = float.__repr__
 
 
+def _repr_text(piece: str, value: float) -> str:
+    """``repr(value)``, from ``piece``, orjson's text of the float ``value``. The two
+    notations orjson writes where ``repr`` writes another (nearly every such number of a
+    frame: velocities near rest) are rewritten as text: ``d.ddde-N`` (a one-digit negative
+    exponent), where ``repr`` writes ``e-0N``; and ``0.0000ddd`` (1e-5 <= |x| < 1e-4),
+    where it writes ``d.ddde-05``. The digits are the same shortest ones. Anything else
+    is left to ``repr`` (CPython's dtoa: ~12,000 instructions a number, these ~1,500)."""
+    body = piece[1:] if piece.startswith("-") else piece
+    n = len(body)
+    if n >= 3 and body[n - 3] == "e" and body[n - 2] == "-" and body[n - 1] != "0":
+        return piece[:-1] + "0" + piece[-1]
+    if n > 6 and body.startswith("0.0000") and body[6] != "0" and "e" not in body:
+        sign = "-" if n < len(piece) else ""
+        digits = body[6:]
+        if len(digits) == 1:
+            return sign + digits + "e-05"
+        return sign + digits[0] + "." + digits[1:] + "e-05"
+    return _FLOAT_REPR(value)
+
+
 def json_numbers(values: tuple) -> list[str] | None:
     """The text ``json.dumps`` writes for each of ``values``, or ``None`` if it would refuse
     one (NaN, infinity) or ``orjson`` cannot write one.
@@ -269,8 +289,9 @@ def json_numbers(values: tuple) -> list[str] | None:
     the time of two. Its digits are the same shortest ones (Ryu); only the notation can
     differ: ``1e-9`` or ``1e-09``, ``1e140`` or ``1e+140``, ``0.00001`` or ``1e-05``. Every
     such text holds an ``e`` or ``0.0000``, which ``repr``'s fixed notation (1e-4 <= |x| <
-    1e16) never starts with, so those (a few in a hundred) are written again by ``repr``;
-    a false alarm (``100000.00001``) only costs that. ``tests/test_codec.py`` holds the
+    1e16) never starts with, so those (velocities near rest: two in a frame of three
+    moving parts) are put in ``repr``'s notation (``_repr_text``); a false alarm
+    (``100000.00001``) only costs a ``repr``. ``tests/test_codec.py`` holds the
     two to each other on every exponent, random bit patterns and hypothesis' floats.
     """
     try:
@@ -286,7 +307,8 @@ def json_numbers(values: tuple) -> list[str] | None:
         for i, piece in enumerate(pieces):
             if "e" in piece or "0.0000" in piece:
                 value = values[i]
-                pieces[i] = _FLOAT_REPR(value) if type(value) is float else json.dumps(value)
+                pieces[i] = _repr_text(piece, value) if type(value) is float \
+                    else json.dumps(value)
     return pieces
 
 
