@@ -15,13 +15,13 @@ from dataclasses import replace
 import numpy as np
 import orjson
 import pytest
-from hypothesis import given, settings
+from hypothesis import event, given, settings
 from hypothesis import strategies as st
 
 from vade_replay import codec
 from vade_replay.events import ModeChanged
-from vade_replay.frames import (DeviceSample, FrameRecord, PartSnapshot, TrackerFrame,
-                                changed_indices)
+from vade_replay.frames import (MAX_ABS_POSITION_M, DeviceSample, FrameRecord, PartSnapshot,
+                                TrackerFrame, changed_indices)
 
 finite = st.one_of(st.floats(allow_nan=False, allow_infinity=False),
                    st.sampled_from([0.0, -0.0, 5e-324, -1e-310, 1e300, 0.1, 1 / 3]))
@@ -274,3 +274,51 @@ def test_tracker_messages_refuse_what_json_refuses(bad):
     frame = TrackerFrame(0, 0, (("head", DeviceSample((0.0, bad, 0.0), (0.0, 0.0, 0.0, 1.0))),))
     with pytest.raises(ValueError):
         codec.tracker_message(frame)
+
+
+_device_numbers = st.one_of(finite, st.sampled_from([math.nan, math.inf, -math.inf, 1e6,
+                                                     -1e6, 1000000.0000000001, -0.0]),
+                            st.integers(-3, 3), st.booleans())
+
+
+@st.composite
+def _device_docs(draw):
+    """Tracker devices as a message holds them: mostly well formed, sometimes not."""
+    docs = {}
+    for name in draw(st.lists(st.sampled_from(["head", "left_hand", "right_hand", "tool"]),
+                              max_size=3, unique=True)):
+        doc = {"position": draw(st.lists(_device_numbers, min_size=2, max_size=4)),
+               "xyzw": draw(st.lists(_device_numbers, min_size=3, max_size=5)),
+               "grip": draw(st.sampled_from([None, True, False, 0, "yes"]))}
+        if draw(st.booleans()):
+            room = st.floats(-MAX_ABS_POSITION_M, MAX_ABS_POSITION_M)
+            doc["position"] = [draw(room) for _ in range(3)]
+            doc["xyzw"] = [draw(room) for _ in range(4)]
+        docs[name] = doc
+    return docs
+
+
+@settings(max_examples=400, deadline=None, derandomize=True)
+@given(_device_docs())
+def test_the_fast_device_reading_takes_exactly_what_the_encoder_writes(devices):
+    """``_decode_devices_fast`` accepts a frame's devices only if every one has 3 + 4
+    floats (not ints or bools) of at most MAX_ABS_POSITION_M (so finite) and a bool or
+    null grip, and then reads them as they are; anything else it leaves to the checked
+    path (``None``), which names what is wrong."""
+    def good(values, n):
+        return len(values) == n and all(type(v) is float and abs(v) <= MAX_ABS_POSITION_M
+                                        for v in values)
+    accepted = all(good(d["position"], 3) and good(d["xyzw"], 4)
+                   and d["grip"] in (None, True, False) and type(d["grip"]) is not int
+                   for d in devices.values())
+    got = codec._decode_devices_fast(devices)
+    event("accepted" if accepted else "left to the checked path")
+    if not accepted:
+        assert got is None
+        return
+    assert got is not None
+    assert [name for name, _ in got] == sorted(devices)
+    for name, sample in got:
+        assert sample.position == tuple(devices[name]["position"])
+        assert sample.rotation_xyzw == tuple(devices[name]["xyzw"])
+        assert sample.grip is devices[name]["grip"]

@@ -126,19 +126,13 @@ def _vec(value, n: int, *, topic: str, field: str, frame: int | None) -> tuple:
     return tuple(float(v) for v in value)
 
 
-_FLOAT_ONLY = {float}
-# ``sum(values, 0.0)``: of a list of unknown items mypy infers an int, and the compiled
-# module (vade_replay/native.py) would check for one; the start makes it a float.
-
-
 def _decode_devices_fast(devices: dict) -> tuple | None:
     """The devices of a tracker frame as this encoder writes them (3 + 4 finite floats of at
-    most MAX_ABS_POSITION_M and a bool or null grip each), checked all at once; ``None`` for
-    anything else, which the per-device path below then decodes or refuses, naming it."""
-    names = sorted(devices)
-    rows = []
-    values: list = []
-    for name in names:
+    most MAX_ABS_POSITION_M and a bool or null grip each), checked number by number;
+    ``None`` for anything else, which the per-device path below then decodes or refuses,
+    naming it. (Compiled, the numbers are C doubles here: a NaN fails ``<=``.)"""
+    out = []
+    for name in sorted(devices):
         d = devices[name]
         if type(d) is not dict:
             return None
@@ -146,16 +140,21 @@ def _decode_devices_fast(devices: dict) -> tuple | None:
         if not (type(pos) is list and type(rot) is list and len(pos) == 3 and len(rot) == 4
                 and (grip is None or grip is True or grip is False)):
             return None
-        values += pos
-        values += rot
-        rows.append((name, pos, rot, grip))
-    # Every number a float; the sum is finite only if every term is. (Checked before any
-    # DeviceSample is made: compiled, its fields are checked to be floats.)
-    if values and not (set(map(type, values)) == _FLOAT_ONLY and math.isfinite(sum(values, 0.0))
-                       and max(map(abs, values)) <= MAX_ABS_POSITION_M):
-        return None
-    return tuple((name, DeviceSample(tuple(pos), tuple(rot), grip))
-                 for name, pos, rot, grip in rows)
+        for v in pos:
+            if type(v) is not float or not abs(v) <= MAX_ABS_POSITION_M:
+                return None
+        for v in rot:
+            if type(v) is not float or not abs(v) <= MAX_ABS_POSITION_M:
+                return None
+        px: float = pos[0]
+        py: float = pos[1]
+        pz: float = pos[2]
+        qx: float = rot[0]
+        qy: float = rot[1]
+        qz: float = rot[2]
+        qw: float = rot[3]
+        out.append((name, DeviceSample((px, py, pz), (qx, qy, qz, qw), grip)))
+    return tuple(out)
 
 
 def decode_tracker(data: bytes) -> TrackerFrame:
