@@ -149,25 +149,26 @@ def rotate_momentum(q: sp.Quat, momentum: sp.Vec3, dt_s: float, moments: sp.Vec3
     i0, i1, i2 = moments
     m0, m1, m2 = momentum
     qx, qy, qz, qw = q
-    cos, sin = math.cos, math.sin
+    # math.cos and math.sin called by name: compiled (mypyc), that is a direct C call;
+    # bound to local names they would be Python calls with boxed floats.
     for axis, tau in _flows(order, steps, dt_s / steps):
         if axis == 0:
             half = 0.5 * tau * m0 / i0
-            hc, hs = cos(half), sin(half)
+            hc, hs = math.cos(half), math.sin(half)
             c, s = hc * hc - hs * hs, 2.0 * hs * hc
             m1, m2 = c * m1 + s * m2, -s * m1 + c * m2
             qx, qy, qz, qw = (qw * hs + qx * hc, qy * hc + qz * hs, qz * hc - qy * hs,
                               qw * hc - qx * hs)
         elif axis == 1:
             half = 0.5 * tau * m1 / i1
-            hc, hs = cos(half), sin(half)
+            hc, hs = math.cos(half), math.sin(half)
             c, s = hc * hc - hs * hs, 2.0 * hs * hc
             m2, m0 = c * m2 + s * m0, -s * m2 + c * m0
             qx, qy, qz, qw = (qx * hc - qz * hs, qw * hs + qy * hc, qz * hc + qx * hs,
                               qw * hc - qy * hs)
         else:
             half = 0.5 * tau * m2 / i2
-            hc, hs = cos(half), sin(half)
+            hc, hs = math.cos(half), math.sin(half)
             c, s = hc * hc - hs * hs, 2.0 * hs * hc
             m0, m1 = c * m0 + s * m1, -s * m0 + c * m1
             qx, qy, qz, qw = (qx * hc + qy * hs, qy * hc - qx * hs, qw * hs + qz * hc,
