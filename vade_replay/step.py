@@ -304,6 +304,15 @@ def _flight_pose(f: _Frame, body: Body, start: free.Flight, t_ns: int):
     return flight, cm, v, pose
 
 
+def _finite(values: tuple[float, ...]) -> bool:
+    """``all(map(math.isfinite, values))``; compiled, ``isinf`` and ``isnan`` are C calls
+    where ``math.isfinite`` (no mypyc primitive) would be a Python call per number."""
+    for v in values:
+        if math.isinf(v) or math.isnan(v):
+            return False
+    return True
+
+
 def _fly(f: _Frame, index: int) -> None:
     part = f.parts[index]
     body = f.scene.parts[index]
@@ -313,7 +322,7 @@ def _fly(f: _Frame, index: int) -> None:
     if t_b <= t_a:
         return
     flight, cm_b, v_b, pose_b = _flight_pose(f, body, start, t_b)
-    if not all(math.isfinite(x) for x in (*pose_b.position, *pose_b.rotation, *v_b)):
+    if not (_finite(pose_b.position) and _finite(pose_b.rotation) and _finite(v_b)):
         f.change_mode(index, PartState(part.name, Mode.STATIC, part.pose), Cause.NUMERICAL_FAULT)
         return
     w_b = free.omega_world(flight, model=physics.free_rotation, moments=body.principal_moments)
@@ -772,7 +781,7 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
                         f, physics.gravity_rotation))) * mate.inertia_about_axis
                     if torque <= mate.holding_torque:
                         w1 = 0.0
-    if not all(map(math.isfinite, (*x1, *v1, a1, w1))):
+    if not (_finite(x1) and _finite(v1) and _finite((a1, w1))):
         f.change_mode(index, replace(part, mode=Mode.ONBASESTATIC, linear_velocity=sp.ZERO3,
                                      angular_velocity=sp.ZERO3,
                                      motion=replace(m, slide_rate=tuple(0.0 for _ in v1),
