@@ -347,11 +347,14 @@ class FrameEncoder:
 
     def _fragments(self, s: PartSnapshot) -> tuple[str, str, str] | None:
         name, mode = json_string(s.name), json_string(s.mode)
-        if not (len(s.angular_velocity) == len(s.linear_velocity) == len(s.position) == 3
-                and len(s.rotation_xyzw) == 4):
+        # Each field read once into a local and indexed (compiled, a fixed-length tuple
+        # field is a C struct: reading it into len() or a star-unpack builds a new tuple
+        # of new floats each time).
+        av, lv, p, q = s.angular_velocity, s.linear_velocity, s.position, s.rotation_xyzw
+        if not (len(av) == len(lv) == len(p) == 3 and len(q) == 4):
             return None
-        r = json_numbers((*s.angular_velocity, *s.linear_velocity, *s.position,
-                          *s.rotation_xyzw))
+        r = json_numbers((av[0], av[1], av[2], lv[0], lv[1], lv[2], p[0], p[1], p[2],
+                          q[0], q[1], q[2], q[3]))
         if r is None:
             return None
         part = (f'{{"angular_velocity":[{r[0]},{r[1]},{r[2]}],"linear_velocity":[{r[3]},{r[4]},'
