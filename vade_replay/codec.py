@@ -102,8 +102,9 @@ def tracker_message(frame: TrackerFrame) -> bytes:
         grip = sample.grip
         g = "null" if grip is None else "true" if grip is True else "false" \
             if grip is False else ""
-        n = json_numbers((*sample.position, *sample.rotation_xyzw)) \
-            if len(sample.position) == 3 and len(sample.rotation_xyzw) == 4 else None
+        p, q = sample.position, sample.rotation_xyzw  # read once (see FrameEncoder._fragments)
+        n = json_numbers((p[0], p[1], p[2], q[0], q[1], q[2], q[3])) \
+            if len(p) == 3 and len(q) == 4 else None
         if n is None or not g:
             return dumps(encode_tracker(frame))
         devices.append(f'{json_string(name)}:{{"grip":{g},"position":[{n[0]},{n[1]},{n[2]}],'
