@@ -89,22 +89,33 @@ def _slope_at_zero(times: list[float], values: list[sp.Vec3]) -> sp.Vec3:
     s1, s2, s3, s4, det = _moments(tuple(times))
     if det == 0.0:
         return sp.ZERO3
-    out = []
-    squares = [t * t for t in times]
-    for k in range(3):  # each coordinate over the samples
-        # sum(v), sum(t v), sum(t t v) in sample order, as (t * t) * v: each product
-        # rounded, then added from 0.0 in order, the bits of sum(map(mul, ...)). Written
-        # out, the compiled build runs it on C doubles (2-3x faster); as Python it is no
-        # slower.
-        y0 = y1 = y2 = 0.0
-        for i in range(n):
-            v = values[i][k]
-            y0 += v
-            y1 += times[i] * v
-            y2 += squares[i] * v
-        det1 = n * (y1 * s4 - s3 * y2) - y0 * (s1 * s4 - s3 * s2) + s2 * (s1 * y2 - y1 * s2)
-        out.append(det1 / det)
-    return (out[0], out[1], out[2])
+    # sum(v), sum(t v), sum(t t v) of each coordinate in sample order, as (t * t) * v: each
+    # product rounded, then added from 0.0 in order, the bits of sum(map(mul, ...)). The
+    # three coordinates are summed side by side, each sample read once (compiled, reading
+    # a Vec3 out of the list unpacks it: once a sample, not once a coordinate).
+    a0 = a1 = a2 = b0 = b1 = b2 = c0 = c1 = c2 = 0.0
+    for i in range(n):
+        v0, v1, v2 = values[i]
+        t = times[i]
+        tt = t * t
+        a0 += v0
+        b0 += t * v0
+        c0 += tt * v0
+        a1 += v1
+        b1 += t * v1
+        c1 += tt * v1
+        a2 += v2
+        b2 += t * v2
+        c2 += tt * v2
+    return (_coefficient(n, a0, b0, c0, s1, s2, s3, s4) / det,
+            _coefficient(n, a1, b1, c1, s1, s2, s3, s4) / det,
+            _coefficient(n, a2, b2, c2, s1, s2, s3, s4) / det)
+
+
+def _coefficient(n: int, y0: float, y1: float, y2: float, s1: float, s2: float, s3: float,
+                 s4: float) -> float:
+    """Cramer's numerator of the slope c1 of the normal equations."""
+    return n * (y1 * s4 - s3 * y2) - y0 * (s1 * s4 - s3 * s2) + s2 * (s1 * y2 - y1 * s2)
 
 
 def estimate(history: tuple, *, method: str, window: int) -> tuple[sp.Vec3, sp.Vec3]:
