@@ -939,8 +939,12 @@ def _sweep(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, x1: tuple[float, ...
 
 def _distance(a: tuple[float, ...], b: tuple[float, ...]) -> float:
     """Euclidean distance between two points in slide coordinates (summed in order, as
-    written: not ``math.dist``, whose other rounding would move a decision)."""
-    return math.sqrt(sum([(q - p) ** 2 for p, q in zip(a, b)]))
+    written: not ``math.dist``, whose other rounding would move a decision). The loop is
+    ``sum((q - p) ** 2 for p, q in zip(a, b))`` written out: no list or zip when compiled."""
+    total = 0.0
+    for i in range(min(len(a), len(b))):
+        total += (b[i] - a[i]) ** 2
+    return math.sqrt(total)
 
 
 def _still_on_base(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, rel: sp.Pose,
