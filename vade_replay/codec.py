@@ -266,7 +266,8 @@ def _repr_text(piece: str, value: float) -> str:
     frame: velocities near rest) are rewritten as text: ``d.ddde-N`` (a one-digit negative
     exponent), where ``repr`` writes ``e-0N``; and ``0.0000ddd`` (1e-5 <= |x| < 1e-4),
     where it writes ``d.ddde-05``. The digits are the same shortest ones. Anything else
-    is left to ``repr`` (CPython's dtoa: ~12,000 instructions a number, these ~1,500)."""
+    is left to ``repr`` (CPython's dtoa: ~12,000 instructions a number, a few times what
+    these string operations cost)."""
     body = piece[1:] if piece.startswith("-") else piece
     n = len(body)
     if n >= 3 and body[n - 3] == "e" and body[n - 2] == "-" and body[n - 1] != "0":
