@@ -165,3 +165,15 @@ def test_bad_options_exit_2(tmp_path, capsys):
     assert run(bench.main, ["--repeats", "0", "-o", str(tmp_path)]) == 2
     err = capsys.readouterr().err
     assert "Traceback" not in err and err.count("error:") == 2
+
+
+def test_a_diverged_run_is_never_on_the_front_even_when_fastest():
+    """A scheme that blew up stops computing (its numbers are NaN), so it can time as the
+    fastest row of its motion; the front must still leave it out (a CI run found this)."""
+    from vade_replay.bench.physics import _mark_pareto
+    rows = [{"motion": "m", "ms_per_sim_s": 0.01, "error": float("inf")},
+            {"motion": "m", "ms_per_sim_s": 0.10, "error": 1e-3},
+            {"motion": "m", "ms_per_sim_s": 0.20, "error": 1e-6},
+            {"motion": "m", "ms_per_sim_s": 0.30, "error": 1e-3}]
+    _mark_pareto(rows)
+    assert [r["pareto"] for r in rows] == [False, True, True, False]

@@ -653,9 +653,10 @@ def _slide_motion(plan, rows, motion, kind, make_paths, x0, v0, t_end, exact, re
 
 def _mark_pareto(rows: list[dict]) -> None:
     """``pareto``: no other row of the motion is both at least as fast and as accurate and
-    better in one of them."""
+    better in one of them. A diverged run (infinite error) is never on the front, however
+    fast: it stops doing work once its numbers are NaN, so it can be the fastest row."""
     for row in rows:
-        row["pareto"] = not any(
+        row["pareto"] = math.isfinite(row["error"]) and not any(
             o is not row and o["motion"] == row["motion"]
             and o["ms_per_sim_s"] <= row["ms_per_sim_s"] and o["error"] <= row["error"]
             and (o["ms_per_sim_s"] < row["ms_per_sim_s"] or o["error"] < row["error"])
