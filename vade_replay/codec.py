@@ -127,6 +127,14 @@ def _vec(value, n: int, *, topic: str, field: str, frame: int | None) -> tuple:
     return tuple(float(v) for v in value)
 
 
+def _floats_in_room(values: list) -> bool:
+    """Every item a float of at most MAX_ABS_POSITION_M in size (so finite: NaN fails)."""
+    for v in values:
+        if type(v) is not float or not abs(v) <= MAX_ABS_POSITION_M:
+            return False
+    return True
+
+
 def _decode_devices_fast(devices: dict) -> tuple | None:
     """The devices of a tracker frame as this encoder writes them (3 + 4 finite floats of at
     most MAX_ABS_POSITION_M and a bool or null grip each), checked number by number;
@@ -141,12 +149,8 @@ def _decode_devices_fast(devices: dict) -> tuple | None:
         if not (type(pos) is list and type(rot) is list and len(pos) == 3 and len(rot) == 4
                 and (grip is None or grip is True or grip is False)):
             return None
-        for v in pos:
-            if type(v) is not float or not abs(v) <= MAX_ABS_POSITION_M:
-                return None
-        for v in rot:
-            if type(v) is not float or not abs(v) <= MAX_ABS_POSITION_M:
-                return None
+        if not (_floats_in_room(pos) and _floats_in_room(rot)):
+            return None
         px: float = pos[0]
         py: float = pos[1]
         pz: float = pos[2]
