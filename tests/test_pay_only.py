@@ -99,6 +99,60 @@ def test_turning_against_the_base_inside_the_envelope_needs_one_query_a_frame(mo
     assert fast_stats["fcl_distance_queries"] * 1.8 < slow_stats["fcl_distance_queries"]
 
 
+def test_a_part_lying_flat_against_the_base_is_asked_by_its_witness_pair(monkeypatch):
+    """The gear swings while its face lies flat against the stand: hundreds of its
+    triangles at one distance, which no bounding volume prunes. The pair of triangles that
+    last touched answers "still in contact?" instead, and the frames are the same."""
+    from vade_replay import collision as collision_module
+    session = load(RECORDINGS / "gear_tilted_shaft.json")
+    fast, fast_stats = _run(session)
+    monkeypatch.setattr(collision_module, "_WITNESS_PAIRS", False)
+    slow, slow_stats = _run(session)
+    assert _values(fast) == _values(slow)
+    assert slow_stats["witness_tests"] == 0
+    # Every question is still asked, nearly all of them of one pair of triangles.
+    assert fast_stats["witness_tests"] + fast_stats["fcl_distance_queries"] \
+        >= slow_stats["fcl_distance_queries"]
+    assert fast_stats["fcl_distance_queries"] * 10 < slow_stats["fcl_distance_queries"]
+
+
+def test_the_witness_pair_answers_as_the_whole_meshes_do():
+    """``base_distance_within`` against ``base_distance``, the gear posed along a path that
+    comes flat against the stand, swings there, backs off across the tolerance and comes in
+    again, tilted: within the tolerance both or neither, and any answer outside it exact."""
+    import math
+
+    from vade_replay import spatial as sp
+    from vade_replay.collision import CheckMode
+    scene = load(RECORDINGS / "gear_tilted_shaft.json").build_scene()
+    world = CollisionWorld(scene)
+    tol = scene.physics.contact_tolerance
+    # The gear on the shaft (base x), its face 0.005 m from its frame: at x = 0.005 + g its
+    # face is g from the stand's face, at any angle about the shaft.
+    on_shaft = (0.5, 0.5, 0.5, 0.5)
+    path = [(0.005 + g, a, 0.0) for g in (3 * tol, 1.5 * tol, 0.9 * tol, 0.59 * tol)
+            for a in (0.0, 0.1)]
+    path += [(0.005 + 0.59 * tol, 0.02 * k, 0.0) for k in range(60)]       # swinging flat
+    path += [(0.005 + g * tol, 1.0, 0.0) for g in (0.99, 0.999999, 1.0, 1.000001, 1.01, 2.0)]
+    path += [(0.005 + 0.5 * tol, 1.3, tilt) for tilt in (0.0, 1e-3, 2e-3, 5e-3, 1e-2)]
+    # Around the shaft just in and just out of the tolerance: the witness triangle leaves the
+    # stand's triangle it was found over.
+    path += [(0.005 + g * tol, 0.5 * k, 0.0) for k in range(13) for g in (0.9, 2.0)]
+    within = 0
+    for x, angle, tilt in path:
+        turn = sp.quat_mul(sp.quat_unit_axis_angle((1.0, 0.0, 0.0), angle),
+                           sp.quat_unit_axis_angle((0.0, 0.0, 1.0), tilt))
+        rel = sp.Pose((x, 0.0, 0.0), sp.quat_normalize(sp.quat_mul(turn, on_shaft)))
+        exact = world.base_distance("gear", 0, rel, CheckMode.SKIP_COAXIAL)
+        answer = world.base_distance_within("gear", 0, rel, CheckMode.SKIP_COAXIAL, tol)
+        assert (answer <= tol) == (exact <= tol), (x, angle, tilt, exact, answer)
+        assert answer <= tol or answer == exact
+        assert answer >= exact or math.isclose(answer, exact, abs_tol=1e-15)
+        within += exact <= tol
+    # The witness answered most of the swing without the whole meshes.
+    assert world.stats["witness_tests"] > 50 and within > 60
+
+
 def _pin_near_the_teeth(angle_deg: float, gap_m: float) -> dict:
     """gear_pendulum with a 4 mm pin on the stand, ``gap_m`` outside the gear's tooth tips:
     the envelope (a cylinder at the tip radius) is within the contact tolerance of the pin,
@@ -134,8 +188,8 @@ def test_a_tooth_turning_into_a_pin_within_tolerance_is_blocked(monkeypatch, ang
 def test_the_replay_summary_reports_the_counters(name):
     from vade_replay.replay import replay
     counters = replay(Recording(RECORDINGS / f"{name}.mcap")).counters
-    assert set(counters) == {"fcl_distance_queries", "bounding_tests", "integrator_steps",
-                             "closed_form_evals"}
+    assert set(counters) == {"fcl_distance_queries", "bounding_tests", "witness_tests",
+                             "integrator_steps", "closed_form_evals"}
     assert all(isinstance(v, int) and v >= 0 for v in counters.values())
     assert counters["integrator_steps"] + counters["closed_form_evals"] > 0
     json.dumps(counters)

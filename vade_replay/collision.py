@@ -61,7 +61,8 @@ def _distance(a: fcl.CollisionObject, b: fcl.CollisionObject) -> float:
 
 @dataclass(frozen=True)
 class _MateGeometry:
-    """BVHs of one constraint, built once: the two feature sub-meshes and the rest."""
+    """BVHs of one constraint, built once: the two feature sub-meshes and the rest, with the
+    triangles of each (what fcl's primitive indices count)."""
 
     part_feature: fcl.BVHModel | None
     base_feature: fcl.CollisionObject | None
@@ -69,6 +70,16 @@ class _MateGeometry:
     base_whole: fcl.CollisionObject
     sweep: fcl.Cylinder | None      # the part's solid of revolution about its axis
     sweep_center: float             # middle of the part's span along its axis
+    part_feature_faces: np.ndarray
+    base_feature_faces: np.ndarray
+    base_rest_faces: np.ndarray
+
+
+# A witness pair decides "within the tolerance" only this far inside it: far above the
+# round-off of one triangle distance (fcl computes the pair's distance the same way inside
+# the whole query), far below anything physical.
+_WITNESS_MARGIN_M = 1e-12
+_WITNESS_PAIRS = True  # the shortcut of base_distance_within (off in a test)
 
 
 def _transform(pose: sp.Pose) -> fcl.Transform:
@@ -101,12 +112,14 @@ class CollisionWorld:
                                       tuple(world.max(axis=0))))
         self._mates: dict[tuple[str, int], _MateGeometry] = {}
         self._base_whole = None
+        self._base_faces = self._base_vertices = np.zeros((0, 3))
         self.base_radius = 0.0  # farthest base vertex from the base frame's origin
         if scene.base is not None:
             base = scene.base
             identity = fcl.Transform()
             whole = fcl.CollisionObject(_bvh(base), identity)
             self._base_whole = whole
+            self._base_faces, self._base_vertices = base.faces, base.vertices
             self.base_radius = float(np.max(np.linalg.norm(base.vertices, axis=1)))
             for body in scene.parts:
                 if body.assembly is None:
@@ -115,10 +128,14 @@ class CollisionWorld:
                     self._mates[(body.name, index)] = self._mate_geometry(body, base, mate,
                                                                          whole, identity)
         self._probe = fcl.Sphere(1e-9)
+        # Per (part, mate, mode): the pair of triangles that last came within the tolerance
+        # (``base_distance_within``), as one-triangle BVHs.
+        self._witnesses: dict[tuple[str, int, CheckMode],
+                              tuple[fcl.BVHModel, fcl.CollisionObject]] = {}
         # The run's counters (instrumentation: they never change a result). The step adds
         # its integrator sub-steps and closed-form evaluations here too.
-        self.stats = {"bounding_tests": 0, "fcl_distance_queries": 0, "integrator_steps": 0,
-                      "closed_form_evals": 0}
+        self.stats = {"bounding_tests": 0, "fcl_distance_queries": 0, "witness_tests": 0,
+                      "integrator_steps": 0, "closed_form_evals": 0}
 
     def _model(self, part: str) -> fcl.BVHModel:
         model = self._part_models.get(part)
@@ -134,11 +151,26 @@ class CollisionWorld:
         if mate.turn:
             lo, hi = mate.part_span
             sweep = fcl.Cylinder(mate.sweep_radius, max(hi - lo, 1e-9))
+        part_feature = body.faces[mate.part_feature_faces]
+        base_feature = base.faces[mate.base_feature_faces]
+        base_rest = base.faces[mate.base_rest_faces]
         return _MateGeometry(
-            _bvh_of(body.vertices, body.faces[mate.part_feature_faces]),
-            obj(_bvh_of(base.vertices, base.faces[mate.base_feature_faces])),
-            obj(_bvh_of(base.vertices, base.faces[mate.base_rest_faces])), whole, sweep,
-            0.5 * (mate.part_span[0] + mate.part_span[1]))
+            _bvh_of(body.vertices, part_feature), obj(_bvh_of(base.vertices, base_feature)),
+            obj(_bvh_of(base.vertices, base_rest)), whole, sweep,
+            0.5 * (mate.part_span[0] + mate.part_span[1]), part_feature, base_feature,
+            base_rest)
+
+    def _models(self, part: str, geometry: _MateGeometry, mode: CheckMode):
+        """The part's model and the base's object that ``mode`` compares, and the triangles
+        of each."""
+        if mode is CheckMode.KEEP_COPLANAR:
+            return (geometry.part_feature, geometry.base_feature, geometry.part_feature_faces,
+                    geometry.base_feature_faces)
+        body = self._bodies[part]
+        base_faces = self._base_faces if mode is CheckMode.NOCARE_COPLANAR \
+            else geometry.base_rest_faces
+        other = geometry.base_whole if mode is CheckMode.NOCARE_COPLANAR else geometry.base_rest
+        return self._model(part), other, body.faces, base_faces
 
     def base_distance(self, part: str, mate: int, base_from_part: sp.Pose,
                       mode: CheckMode, *, lift: sp.Vec3 = sp.ZERO3) -> float:
@@ -146,18 +178,49 @@ class CollisionWorld:
 
         ``inf`` when the mode leaves nothing of the base to check against.
         """
-        geometry = self._mates[(part, mate)]
-        pose = sp.Pose(sp.add(base_from_part.position, lift), base_from_part.rotation)
-        if mode is CheckMode.KEEP_COPLANAR:
-            model, other = geometry.part_feature, geometry.base_feature
-        elif mode is CheckMode.NOCARE_COPLANAR:
-            model, other = self._model(part), geometry.base_whole
-        else:
-            model, other = self._model(part), geometry.base_rest
+        model, other, _, _ = self._models(part, self._mates[(part, mate)], mode)
         if model is None or other is None:
             return float("inf")
+        pose = sp.Pose(sp.add(base_from_part.position, lift), base_from_part.rotation)
         self.stats["fcl_distance_queries"] += 1
         return _distance(fcl.CollisionObject(model, _transform(pose)), other)
+
+    def base_distance_within(self, part: str, mate: int, base_from_part: sp.Pose,
+                             mode: CheckMode, tol: float, *,
+                             lift: sp.Vec3 = sp.ZERO3) -> float:
+        """``base_distance`` where only "is it within ``tol``?" is asked of an answer <= tol.
+
+        The distance of two meshes is the least distance of a pair of their triangles, so
+        while the pair that last came within ``tol`` (its witness) is still within it, so
+        are the meshes: that pair's distance (<= tol, and >= the meshes') is returned after
+        one triangle-to-triangle query instead of the whole meshes' (a part lying flat
+        against the base has hundreds of triangles at the same distance, which no bounding
+        volume prunes). Any answer > tol is the exact ``base_distance``.
+        """
+        geometry = self._mates[(part, mate)]
+        model, other, part_faces, base_faces = self._models(part, geometry, mode)
+        if model is None or other is None:
+            return float("inf")
+        pose = sp.Pose(sp.add(base_from_part.position, lift), base_from_part.rotation)
+        transform = _transform(pose)
+        key = (part, mate, mode)
+        witness = self._witnesses.get(key) if _WITNESS_PAIRS else None
+        if witness is not None:
+            self.stats["witness_tests"] += 1
+            d = _distance(fcl.CollisionObject(witness[0], transform), witness[1])
+            if d <= tol - _WITNESS_MARGIN_M:
+                return d
+        self.stats["fcl_distance_queries"] += 1
+        result = fcl.DistanceResult()
+        d = fcl.distance(fcl.CollisionObject(model, transform), other, fcl.DistanceRequest(),
+                         result)
+        if d <= tol and 0 <= result.b1 < len(part_faces) and 0 <= result.b2 < len(base_faces):
+            body, base = self._bodies[part], self._base_vertices
+            self._witnesses[key] = (
+                _bvh_of(body.vertices, part_faces[result.b1:result.b1 + 1]),
+                fcl.CollisionObject(_bvh_of(base, base_faces[result.b2:result.b2 + 1]),
+                                    fcl.Transform()))
+        return d
 
     def support_distance(self, part: str, mate: int, point: sp.Vec3) -> float:
         """Distance from a point on the base plane to the base's feature faces (0: on them)."""

@@ -878,7 +878,11 @@ def _sweep(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, x1: tuple[float, ...
     if speed == 0.0:
         # A move too small to measure (its square underflows): nothing can have come nearer.
         return m, None
-    d0 = distance(x0, a0)
+    # Only "within the tolerance?" is asked of a start distance <= tol (below, a start in
+    # contact uses the end's distance), so a witness pair may answer it.
+    d0 = f.collision.base_distance_within(
+        body.name, m.mate, cn.relative_pose(mate, m.base_from_snap, x0, a0), mode, tol,
+        lift=lift)
     d = d0
     lam = 0.0
     hit = None

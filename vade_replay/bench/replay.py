@@ -85,7 +85,8 @@ def _end_to_end(name: str, session, work: Path, repeats: int) -> dict:
 
 def _counters(counters: dict) -> dict:
     return {key: counters.get(key, 0) for key in
-            ("fcl_distance_queries", "bounding_tests", "integrator_steps", "closed_form_evals")}
+            ("fcl_distance_queries", "bounding_tests", "witness_tests", "integrator_steps",
+             "closed_form_evals")}
 
 
 _PEAK = """
