@@ -41,7 +41,8 @@ def test_files_are_written_and_agree(short_run):
     assert {r["motion"] for r in rows} == {
         "free_translation", "tumbling_box", "spinning_bar", "gear_damped", "gear_undamped",
         "gear_energy_undamped", "gear_period_undamped", "tilted_shaft_turn", "incline",
-        "incline_static", "incline_across", "plane_turning_base", "tilted_shaft_slide"}
+        "incline_static", "incline_across", "plane_turning_base", "plane_turning_fast",
+        "incline_onset", "tilted_shaft_slide"}
     for r, j in zip(rows, doc["rows"]):
         assert float(r["ms_per_sim_s"]) == j["ms_per_sim_s"] > 0.0
     assert doc["machine"]["python"] and doc["short"] is True
@@ -79,6 +80,12 @@ def test_the_best_schemes_are_accurate_against_the_references(short_run):
     for motion in ("incline", "incline_across", "tilted_shaft_slide"):
         assert _row(doc, motion, "analytic", 4)["error"] < 1e-12, motion
     assert _row(doc, "plane_turning_base", "analytic", 4)["error"] < 1e-5
+    # analytic4: also exact under a still base, fourth order while it turns.
+    for motion in ("incline", "incline_across", "tilted_shaft_slide"):
+        assert _row(doc, motion, "analytic4", 1)["error"] < 1e-12, motion
+    for motion in ("plane_turning_base", "plane_turning_fast", "incline_onset"):
+        assert _row(doc, motion, "analytic4", 1)["error"] < 1e-3 * _row(
+            doc, motion, "analytic", 1)["error"], motion
     assert all(r["error"] == 0.0 for r in doc["rows"] if r["motion"] == "incline_static")
 
 
@@ -91,6 +98,9 @@ def test_orders_show_in_the_rows(short_run):
     ratio = (_row(doc, "incline_across", "euler", 1)["error"]
              / _row(doc, "incline_across", "euler", 4)["error"])
     assert 3 < ratio < 5
+    ratio = (_row(doc, "plane_turning_fast", "analytic4", 1)["error"]
+             / _row(doc, "plane_turning_fast", "analytic4", 4)["error"])
+    assert math.log(ratio, 4) > 3.7
     ratio = (_row(doc, "tumbling_box", "rk4", 1)["error"]
              / _row(doc, "tumbling_box", "rk4", 4)["error"])
     assert math.log(ratio, 4) > 3.3
@@ -100,7 +110,7 @@ def test_references_are_checked_and_far_below_the_errors_they_judge(short_run):
     _, doc = short_run
     refs = {r["motion"]: r for r in doc["references"]}
     for motion in ("tumbling_box", "gear_damped", "gear_undamped", "tilted_shaft_turn",
-                   "incline_across", "plane_turning_base"):
+                   "incline_across", "plane_turning_base", "plane_turning_fast"):
         assert refs[motion]["value"] < 1e-10, motion
     # DOP853's period against the elliptic integral: the crossing finder is good to 1e-8.
     assert refs["gear_period_undamped"]["value"] < 1e-7

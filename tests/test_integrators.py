@@ -265,7 +265,10 @@ def test_a_session_can_select_each_new_scheme():
 
 def test_sub_step_bounds_default_to_the_benchmarks_choice_or_the_shared_one():
     physics = Physics()
-    assert physics.turn_step_s == 1 / 120 and physics.slide_step_s == 1 / 180
+    assert physics.slide_integrator == "analytic4"
+    assert physics.turn_step_s == 1 / 120 and physics.slide_step_s == 1 / 60
+    # The second-order schemes keep their own (analytic's, the default before analytic4).
+    assert Physics(slide_integrator="analytic").slide_step_s == 1 / 180
     assert physics.onbase_max_step_s is None
     assert Physics(onbase_max_step_s=0.01).turn_step_s == 0.01
     assert Physics(onbase_max_step_s=0.01).slide_step_s == 0.01

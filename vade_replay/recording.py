@@ -104,6 +104,16 @@ def _messages(stream) -> Iterator[Channel | tuple[int, bytes] | DataEnd | Footer
             yield record
 
 
+def physics_metadata(physics) -> dict[str, str]:
+    """The physics a recording is made with, as its metadata holds it: every field (JSON
+    text), and the sub-steps on the base in effect (``turn_step_s``, ``slide_step_s``: a
+    field left at None takes a default that a later version may change)."""
+    out = {k: json.dumps(v) for k, v in asdict(physics).items()}
+    out["turn_step_s"] = json.dumps(physics.turn_step_s)
+    out["slide_step_s"] = json.dumps(physics.slide_step_s)
+    return out
+
+
 def package_versions() -> dict[str, str]:
     out = {"python": platform.python_version(), "platform": platform.platform()}
     for name in PACKAGES:
@@ -161,8 +171,7 @@ class RecordingWriter:
             self._writer.add_attachment(0, 0, FILE_ATTACHMENT_PREFIX + name,
                                         "application/octet-stream", session.files[name])
         self._writer.add_metadata("versions", package_versions())
-        self._writer.add_metadata("physics", {k: json.dumps(v) for k, v in
-                                              asdict(scene.physics).items()})
+        self._writer.add_metadata("physics", physics_metadata(scene.physics))
         self._writer.add_metadata("session", {"name": session.name, **(extra_metadata or {})})
         # How /parts and the transforms are written (codec.derived_messages): a file without
         # this record is from before the ``changed`` encoding and lists every part.

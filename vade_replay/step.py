@@ -717,7 +717,8 @@ def _static_hold(mate: cn.Mate, m: OnBase, physics, turn_path: onbase.GravityPat
     A part that also turns reuses the turning's gravity path, scaled (a test only: when it
     fails, sliding gets its own path).
     """
-    if any(m.slide_rate) or physics.slide_integrator not in ("analytic", "midpoint") \
+    if any(m.slide_rate) or physics.slide_integrator not in ("analytic", "analytic4",
+                                                             "midpoint") \
             or mate.kind not in ("axis", "plane"):
         return False
     if turn_path is not None and physics.gravity_scale_rotation != 0.0:
@@ -753,13 +754,16 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
                                                                  q0, q1)):
             path = onbase.GravityPath(physics.gravity_slide, q0, q1)
             slide_steps = onbase.substeps(dt, physics.slide_step_s)
-            f.collision.stats["closed_form_evals" if physics.slide_integrator == "analytic"
-                              else "integrator_steps"] += (
-                1 if physics.slide_integrator == "paper" else slide_steps)
+            # analytic4: two closed-form flows a sub-step.
+            f.collision.stats["closed_form_evals" if physics.slide_integrator in (
+                "analytic", "analytic4") else "integrator_steps"] += (
+                1 if physics.slide_integrator == "paper" else
+                2 * slide_steps if physics.slide_integrator == "analytic4" else slide_steps)
             x1, v1 = onbase.slide(mate.kind, mate.base_dirs, _axis(mate), mate.slide_dirs, path,
                                   m.slide, m.slide_rate, dt, slide_steps,
                                   f_static=mate.static_friction, f_dynamic=mate.dynamic_friction,
-                                  blocked=m.blocked_slide, integrator=physics.slide_integrator)
+                                  blocked=m.blocked_slide, integrator=physics.slide_integrator,
+                                  located=physics.slide_onset == "located")
         if turn_path is not None:
             force = onbase.TurnForce(turn_path, mate.base_dirs[0], m.cm_offset, body.mass_kg,
                                      mate.inertia_about_axis, mate.rotational_friction)

@@ -609,19 +609,45 @@ def _sliding(plan: Plan, rows: list[dict], refs: list[dict]) -> None:
                   plan.slide_s, plane_reference("incline_across", lambda t: q30, (0.0, 1.0),
                                                 plan.slide_s), "DOP853", "m")
 
-    # 4. The same while the base turns at 1 rad/s about its normal: gravity moves in base axes.
-    def turning_q(t):
-        return sp.quat_mul(q30, sp.quat_axis_angle((0.0, 0.0, 1.0), 1.0 * t))
+    # 4. The same while the base turns at 1 rad/s about its normal (gravity moves in base
+    # axes), and at 4 rad/s: a user turning the base over quickly, a quarter turn in 0.4 s.
+    for motion, speed in (("plane_turning_base", 1.0), ("plane_turning_fast", 4.0)):
+        def turning_q(t, speed=speed):
+            return sp.quat_mul(q30, sp.quat_axis_angle((0.0, 0.0, 1.0), speed * t))
 
-    def turning_paths(rate, frames):
-        return [onbase.GravityPath(gw, turning_q(k / rate), turning_q((k + 1) / rate))
+        def turning_paths(rate, frames, turning_q=turning_q):
+            return [onbase.GravityPath(gw, turning_q(k / rate), turning_q((k + 1) / rate))
+                    for k in range(frames)]
+        _slide_motion(plan, rows, motion, "plane", turning_paths, (0.0, 0.0), (0.0, 1.0),
+                      plan.slide_s, plane_reference(motion, turning_q, (0.0, 1.0),
+                                                    plan.slide_s), "DOP853", "m")
+
+    # 5. At rest on a plane that the user tilts at 0.5 rad/s from 10 degrees, through the
+    # friction angle (16.7): it starts to slip at tan(theta*) = f_s and then slides down,
+    # s'' = g (sin theta - f_d cos theta), in closed form from theta*. An onset rounded to a
+    # sub-step makes every scheme first order here.
+    th0, omega = math.radians(10.0), 0.5
+    th_on = math.atan(FS)
+    t_on = (th_on - th0) / omega
+
+    def tilting_q(t):
+        return _tilt_x(math.degrees(th0 + omega * t))
+
+    def tilting_paths(rate, frames):
+        return [onbase.GravityPath(gw, tilting_q(k / rate), tilting_q((k + 1) / rate))
                 for k in range(frames)]
-    _slide_motion(plan, rows, "plane_turning_base", "plane", turning_paths, (0.0, 0.0),
-                  (0.0, 1.0), plan.slide_s,
-                  plane_reference("plane_turning_base", turning_q, (0.0, 1.0), plan.slide_s),
-                  "DOP853", "m")
 
-    # 5. Down a shaft tilted 30 degrees (the gear's): x = -a t^2 / 2 along base x.
+    def onset_exact(times):
+        th = th0 + omega * np.maximum(times, t_on)
+        f_on = -math.cos(th_on) - FD * math.sin(th_on)
+        s_t = G / omega ** 2 * ((-np.sin(th) + FD * np.cos(th))
+                                - (-math.sin(th_on) + FD * math.cos(th_on))
+                                - f_on * (th - th_on))
+        return np.stack([s_t, 0.0 * times], axis=1)
+    _slide_motion(plan, rows, "incline_onset", "plane", tilting_paths, (0.0, 0.0), (0.0, 0.0),
+                  plan.slide_s, onset_exact, "closed form from the onset", "m")
+
+    # 6. Down a shaft tilted 30 degrees (the gear's): x = -a t^2 / 2 along base x.
     tilted = _shaft_gravity(True)
     q_tilt = sp.quat_axis_angle((0.0, 1.0, 0.0), -SHAFT_TILT_RAD)
     assert sp.norm(sp.sub(sp.quat_rotate(sp.quat_conj(q_tilt), gw), tilted)) < 1e-12
@@ -681,7 +707,7 @@ def _by_config(rows: list[dict], motions: dict[str, float]) -> dict[tuple[str, i
 # sliding. Among configurations meeting the bounds these are preferred: a long session must
 # not drift, whatever a 10 s error says.
 PRESERVING = {"yoshida6", "yoshida4", "verlet", "euler", "split6", "split4", "split2",
-              "analytic", "closed_form"}
+              "analytic", "analytic4", "closed_form"}
 _NOT_PRESERVING_ROTATION = {"euler"}  # semi-implicit Euler on Euler's equations is not
 
 
@@ -717,7 +743,9 @@ def _fmt_errors(errors: dict[str, float]) -> str:
 TURN_BOUNDS = {"gear_damped": GEAR_ERROR_RAD, "gear_undamped": GEAR_ERROR_RAD,
                "tilted_shaft_turn": GEAR_ERROR_RAD, "gear_energy_undamped": ENERGY_REL}
 SLIDE_BOUNDS = {"incline": SLIDE_ERROR_M, "incline_across": SLIDE_ERROR_M,
-                "plane_turning_base": SLIDE_ERROR_M, "tilted_shaft_slide": SLIDE_ERROR_M,
+                "plane_turning_base": SLIDE_ERROR_M, "plane_turning_fast": SLIDE_ERROR_M,
+                "incline_onset": SLIDE_ERROR_M,
+                "tilted_shaft_slide": SLIDE_ERROR_M,
                 "incline_static": 0.0}
 ROTATION_BOUNDS = {"tumbling_box": TUMBLE_ERROR_RAD, "spinning_bar": BAR_ERROR_RAD}
 TIME_LIMITS_MS = {"turn": GEAR_MS, "free rotation": TUMBLE_MS}
@@ -801,7 +829,8 @@ def _targets(rows: list[dict], plan: Plan) -> list[dict]:
 
 MOTIONS = ("free_translation", "tumbling_box", "spinning_bar", "gear_damped", "gear_undamped",
            "gear_energy_undamped", "gear_period_undamped", "tilted_shaft_turn", "incline",
-           "incline_static", "incline_across", "plane_turning_base", "tilted_shaft_slide")
+           "incline_static", "incline_across", "plane_turning_base", "plane_turning_fast",
+           "incline_onset", "tilted_shaft_slide")
 
 
 def measure(short: bool, *, repeats: int | None = None, log=None) -> Result:

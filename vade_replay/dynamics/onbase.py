@@ -63,7 +63,7 @@ from .. import spatial as sp
 from .free import COMPOSITIONS
 
 TURN_INTEGRATORS = ("yoshida6", "yoshida4", "verlet", "rk4", "euler", "paper")
-SLIDE_INTEGRATORS = ("analytic", "midpoint", "euler", "paper")
+SLIDE_INTEGRATORS = ("analytic", "analytic4", "midpoint", "euler", "paper")
 _TURN_WEIGHTS = {"verlet": COMPOSITIONS[2], "yoshida4": COMPOSITIONS[4],
                  "yoshida6": COMPOSITIONS[6]}
 
@@ -153,13 +153,18 @@ def _from_rest(gt: tuple[float, ...], n_load: float, fs: float,
 
 
 def _slide_substep(x: list[float], v: list[float], h: float, gt: tuple[float, ...],
-                   n_load: float, fs: float, fd: float, plane_exact: bool = False) -> None:
+                   n_load: float, fs: float, fd: float, plane_exact: bool = False,
+                   until_stop: bool = False) -> float:
     """One sub-step with Coulomb friction under constant ``g_t``; edits x, v in place.
 
     While the velocity is along ``g_t`` (or friction or ``g_t`` is zero) the acceleration is
     constant and the update is exact. Otherwise, in a plane, ``plane_exact`` takes the closed-
     form solution (``_plane_flow``); without it the friction direction is frozen at the
-    sub-step's start (the ``midpoint`` scheme, first order in that case)."""
+    sub-step's start (the ``midpoint`` scheme, first order in that case). A part at rest
+    starts by the static test under this ``g_t``. With ``until_stop`` a part that friction
+    stops returns the time left (the caller decides when it starts again); otherwise the
+    static test under this ``g_t`` decides the rest of the sub-step. Returns the time left
+    (0.0: the whole sub-step was done)."""
     k = len(x)
     while h > 0.0:
         speed = math.sqrt(sum(c * c for c in v))
@@ -169,7 +174,7 @@ def _slide_substep(x: list[float], v: list[float], h: float, gt: tuple[float, ..
                 for i in range(k):
                     x[i] += 0.5 * acc[i] * h * h
                     v[i] = acc[i] * h
-            return
+            return 0.0
         if plane_exact and k == 2:
             c = fd * n_load
             gmag = math.hypot(gt[0], gt[1])
@@ -177,8 +182,12 @@ def _slide_substep(x: list[float], v: list[float], h: float, gt: tuple[float, ..
             if c > 0.0 and gmag > _PARALLEL * c and across > _PARALLEL * speed * gmag:
                 if speed <= _TINY_SPEED * (c + gmag) * h:
                     v[0] = v[1] = 0.0  # immeasurably slow: at rest, the static test decides
+                    if until_stop:
+                        return h
                     continue
                 h = _plane_flow(x, v, h, gt, gmag, c, speed)
+                if until_stop and h > 0.0:
+                    return h
                 continue
         friction = fd * n_load / speed
         acc = [gt[i] - friction * v[i] for i in range(k)]
@@ -191,11 +200,14 @@ def _slide_substep(x: list[float], v: list[float], h: float, gt: tuple[float, ..
                     x[i] += v[i] * t_stop + 0.5 * acc[i] * t_stop * t_stop
                     v[i] = 0.0
                 h -= t_stop
+                if until_stop:
+                    return h
                 continue
         for i in range(k):
             x[i] += v[i] * h + 0.5 * acc[i] * h * h
             v[i] += acc[i] * h
-        return
+        return 0.0
+    return 0.0
 
 
 def _euler_substep(x: list[float], v: list[float], h: float, gt: tuple[float, ...],
@@ -405,6 +417,15 @@ def turn(force: TurnForce, theta: float, omega: float, dt: float, steps: int,
             omega = (omega + half * alpha) * decay
     return theta, omega
 
+# The commutator-free fourth-order scheme of Blanes and Moan (2006) with two exponentials:
+# flows of h/2 under (w_main F(t_early) + w_back F(t_late)), then under the weights swapped,
+# F(t) the sliding equations with gravity frozen at t, t_early and t_late the Gauss nodes.
+_CF4_EARLY = 0.5 - math.sqrt(3.0) / 6.0
+_CF4_LATE = 0.5 + math.sqrt(3.0) / 6.0
+_CF4_MAIN = 0.5 + math.sqrt(3.0) / 3.0
+_CF4_BACK = 0.5 - math.sqrt(3.0) / 3.0
+
+
 def substeps(dt: float, max_step_s: float) -> int:
     return max(1, math.ceil(dt / max_step_s - 1e-9))
 
@@ -412,9 +433,14 @@ def substeps(dt: float, max_step_s: float) -> int:
 def slide(mate_kind: str, normals: tuple[sp.Vec3, ...], axis: sp.Vec3 | None,
           dirs: tuple[sp.Vec3, ...], path: GravityPath, x: tuple[float, ...],
           v: tuple[float, ...], dt: float, steps: int, *, f_static: float, f_dynamic: float,
-          blocked: tuple[float, ...], integrator: str) -> tuple[tuple[float, ...],
-                                                            tuple[float, ...]]:
-    """Advance the slide coordinates ``x`` and rates ``v`` over a frame of ``dt`` seconds."""
+          blocked: tuple[float, ...], integrator: str,
+          located: bool = True) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """Advance the slide coordinates ``x`` and rates ``v`` over a frame of ``dt`` seconds.
+
+    ``located`` (physics ``slide_onset: "located"``, the default): the instants where the part
+    stops and starts to slip are found within the sub-step. Without it (``"sub_step"``, how
+    recordings were made before 2026-11-22): a sub-step's held gravity decides a part at
+    rest for the whole sub-step, and after a stop for the rest of it."""
     xs, vs = list(x), list(v)
     if integrator == "paper":
         # Eqs. 3-4: the angle test decides each frame; friction opposes the downhill direction.
@@ -438,10 +464,114 @@ def slide(mate_kind: str, normals: tuple[sp.Vec3, ...], axis: sp.Vec3 | None,
             gt = project_blocked(tangential(dirs, g), blocked)
             _euler_substep(xs, vs, h, gt, n_load, f_static, f_dynamic)
         return tuple(xs), tuple(vs)
-    plane_exact = integrator == "analytic"
+    if not located:
+        for i in range(steps):
+            if integrator == "analytic4":
+                _flow(integrator, xs, vs, path, i / steps, (i + 1) / steps, dt, mate_kind,
+                      normals, axis, dirs, blocked, f_static, f_dynamic, False)
+                continue
+            g = path.at((i + 0.5) / steps)
+            n_load, _ = normal_load(mate_kind, normals, axis, g)
+            gt = project_blocked(tangential(dirs, g), blocked)
+            _slide_substep(xs, vs, h, gt, n_load, f_static, f_dynamic, integrator == "analytic")
+        return tuple(xs), tuple(vs)
+    # analytic, analytic4, midpoint: sub-step by sub-step, with the instants where friction
+    # stops the part and where it starts to slip again located within the sub-step.
     for i in range(steps):
-        g = path.at((i + 0.5) / steps)
-        n_load, _ = normal_load(mate_kind, normals, axis, g)
-        gt = project_blocked(tangential(dirs, g), blocked)
-        _slide_substep(xs, vs, h, gt, n_load, f_static, f_dynamic, plane_exact)
+        a, b = i / steps, (i + 1) / steps
+        tau = a
+        for _ in range(_MAX_EVENTS):
+            if not any(c != 0.0 for c in vs):
+                tau = _onset(path, tau, b, mate_kind, normals, axis, dirs, blocked,
+                             f_static, f_dynamic)
+                if tau < 0.0:
+                    break
+            left = _flow(integrator, xs, vs, path, tau, b, dt, mate_kind, normals, axis, dirs,
+                         blocked, f_static, f_dynamic)
+            if left <= 0.0:
+                break
+            tau = b - left
+            if tau >= b:
+                break
     return tuple(xs), tuple(vs)
+
+
+# Stops and starts located within one sub-step, at most (a part chattering between stick
+# and slip faster than this rests for the rest of the sub-step).
+_MAX_EVENTS = 8
+
+
+def _drive_at(path: GravityPath, tau: float, mate_kind: str, normals: tuple[sp.Vec3, ...],
+              axis: sp.Vec3 | None, dirs: tuple[sp.Vec3, ...],
+              blocked: tuple[float, ...]) -> tuple[tuple[float, ...], float]:
+    """Gravity along the slide directions (less what a wall holds) and the normal load, at
+    ``tau`` of the frame."""
+    g = path.at(tau)
+    n_load, _ = normal_load(mate_kind, normals, axis, g)
+    return project_blocked(tangential(dirs, g), blocked), n_load
+
+
+def _slips(path: GravityPath, tau: float, mate_kind: str, normals: tuple[sp.Vec3, ...],
+           axis: sp.Vec3 | None, dirs: tuple[sp.Vec3, ...], blocked: tuple[float, ...],
+           fs: float, fd: float) -> bool:
+    """Whether a part at rest at ``tau`` starts to slide (``_from_rest``'s test)."""
+    gt, n_load = _drive_at(path, tau, mate_kind, normals, axis, dirs, blocked)
+    gmag = math.sqrt(sum(c * c for c in gt))
+    return gmag > fs * n_load and gmag > fd * n_load
+
+
+def _onset(path: GravityPath, a: float, b: float, mate_kind: str,
+           normals: tuple[sp.Vec3, ...], axis: sp.Vec3 | None, dirs: tuple[sp.Vec3, ...],
+           blocked: tuple[float, ...], fs: float, fd: float) -> float:
+    """When a part at rest from ``a`` starts to slip within ``[a, b]`` (frame fractions), or
+    -1.0 if static friction holds there. Sampled at a, the middle and b (the turn of the
+    base within a sub-step is small and smooth), then the first slipping sample is bisected
+    down to round-off: the onset is not rounded to a sub-step, which would make the whole
+    slide after it first order in the step, whatever the scheme."""
+    if _slips(path, a, mate_kind, normals, axis, dirs, blocked, fs, fd):
+        return a
+    mid = 0.5 * (a + b)
+    if _slips(path, mid, mate_kind, normals, axis, dirs, blocked, fs, fd):
+        hi = mid
+    elif _slips(path, b, mate_kind, normals, axis, dirs, blocked, fs, fd):
+        hi = b
+    else:
+        return -1.0
+    lo = a
+    for _ in range(64):
+        mid = 0.5 * (lo + hi)
+        if not lo < mid < hi:
+            break
+        if _slips(path, mid, mate_kind, normals, axis, dirs, blocked, fs, fd):
+            hi = mid
+        else:
+            lo = mid
+    return hi
+
+
+def _flow(integrator: str, xs: list[float], vs: list[float], path: GravityPath, a: float,
+          b: float, dt: float, mate_kind: str, normals: tuple[sp.Vec3, ...],
+          axis: sp.Vec3 | None, dirs: tuple[sp.Vec3, ...], blocked: tuple[float, ...],
+          fs: float, fd: float, until_stop: bool = True) -> float:
+    """The scheme over ``[a, b]`` of the frame from the present state (edits xs, vs);
+    returns the part of the frame left when friction stopped the part (0.0: done). Without
+    ``until_stop`` the held gravity decides the rest of the interval after a stop."""
+    h = (b - a) * dt
+    if integrator == "analytic4":
+        # Two exact flows of h/2 under gravity (drive and normal load) combined from the
+        # two Gauss nodes (_CF4).
+        gt_a, n_a = _drive_at(path, a + _CF4_EARLY * (b - a), mate_kind, normals, axis, dirs,
+                              blocked)
+        gt_b, n_b = _drive_at(path, a + _CF4_LATE * (b - a), mate_kind, normals, axis, dirs,
+                              blocked)
+        for half in range(2):
+            w_a, w_b = (_CF4_MAIN, _CF4_BACK) if half == 0 else (_CF4_BACK, _CF4_MAIN)
+            gt = tuple([w_a * gt_a[k] + w_b * gt_b[k] for k in range(len(gt_a))])
+            left = _slide_substep(xs, vs, 0.5 * h, gt, max(0.0, w_a * n_a + w_b * n_b), fs,
+                                  fd, True, until_stop)
+            if left > 0.0:
+                return (left + (0.5 * h if half == 0 else 0.0)) / dt
+        return 0.0
+    # analytic, midpoint: gravity held at the middle of the interval.
+    gt, n_load = _drive_at(path, 0.5 * (a + b), mate_kind, normals, axis, dirs, blocked)
+    return _slide_substep(xs, vs, h, gt, n_load, fs, fd, integrator == "analytic", True) / dt
