@@ -8,7 +8,7 @@ import sys
 
 from vade_replay.errors import ConfigError
 from vade_replay.recording import Recording, ensure_writable
-from vade_replay.replay import replay
+from vade_replay.replay import as_recorded, replay
 
 from vade_replay.errors import VadeError
 
@@ -93,12 +93,24 @@ def _verdict(summary, overrides: dict[str, str], *, short: bool = False) -> str:
             f"{summary.messages_checked} derived messages identical to the recording")
     else:
         text = f"DIVERGED{'' if short else ':'} {summary.first_divergence['text']}"
+        if summary.physics_changed:
+            text += (f" (made with other physics defaults: {', '.join(summary.physics_changed)})"
+                     if short else "\n" + _physics_note(summary.physics_changed))
     if overrides:
         changes = ", ".join(f"{k}={v}" for k, v in sorted(overrides.items()))
         text = f"what-if ({changes}): " + (
             "the recording is unchanged, " + text if summary.match
             else "departs from the recording: " + summary.first_divergence["text"])
     return text
+
+
+def _physics_note(changes: dict) -> str:
+    """Why a recording made by an older version may diverge: a default changed since."""
+    listed = "; ".join(f"{name} {change['recorded']!r} then, {change['now']!r} now"
+                       for name, change in changes.items())
+    options = as_recorded(changes)
+    return (f"note: this recording was made with other physics defaults ({listed})"
+            + (f"; to replay it as it was made: vade-replay FILE {options}" if options else ""))
 
 
 def _one(args, path: str, overrides: dict[str, str]) -> int:

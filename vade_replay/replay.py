@@ -21,8 +21,9 @@ from .analysis import SessionAnalysis
 from .collision import CollisionWorld
 from .errors import ConfigError, RecordingError, SessionError, VadeError
 from .frames import FrameRecord, TrackerFrame
-from .recording import RecordedFrame, Recording, RecordingWriter, ensure_writable
-from .scene import PAPER_DEFAULTS, Scene
+from .recording import (RecordedFrame, Recording, RecordingWriter, ensure_writable,
+                        physics_metadata)
+from .scene import LENGTH_FIELDS, PAPER_DEFAULTS, Physics, Scene
 from .session import Session, parse, strict_json
 from .step import frame_record, initial_state, step
 
@@ -77,6 +78,9 @@ class RunSummary:
     first_divergence: dict | None = None
     overrides: dict = field(default_factory=dict)
     counters: dict = field(default_factory=dict)
+    # Physics this run used that differs from what the recording was made with, other than
+    # the what-if's own changes: a default changed since (name -> recorded, now).
+    physics_changed: dict = field(default_factory=dict)
     truncated: bool = False
     # Which build ran the frames (native.describe): compiled or the Python sources. Both
     # give the same bits; it says where to look when two machines disagree.
@@ -301,6 +305,63 @@ def _with_file(items: Iterator, path: Path) -> Iterator:
         raise
 
 
+# Effective values that follow from fields: not a change of their own when one of these is
+# overridden.
+_DERIVED = {"slide_step_s": ("slide_integrator", "slide_max_step_s", "onbase_max_step_s"),
+            "turn_step_s": ("turn_integrator", "turn_max_step_s", "onbase_max_step_s")}
+# What a recording made before a physics key existed was made with (JSON text): the
+# behaviour that key's other value keeps for replaying such recordings as they were made.
+_BEFORE_THE_KEY = {"slide_onset": '"sub_step"', "slide_step_s": json.dumps(1.0 / 180.0),
+                   "turn_step_s": json.dumps(1.0 / 120.0)}
+
+
+def physics_changes(recording: Recording, physics, applied: dict) -> dict:
+    """Physics of a replay that differs from what ``recording`` was made with (its
+    ``physics`` metadata; a key it lacks is what came before that key, ``_BEFORE_THE_KEY``),
+    leaving out what the overrides ``applied`` changed on purpose: what a newer version's
+    defaults changed. Name -> ``{"recorded": ..., "now": ...}``. Empty for a recording
+    without physics metadata (not written by vade-record)."""
+    recorded = dict(recording.metadata.get("physics") or {})
+    if not recorded:
+        return {}
+    for name, before in _BEFORE_THE_KEY.items():
+        recorded.setdefault(name, before)
+    now = physics_metadata(physics)
+    changed_on_purpose = {key[8:] for key in applied}
+    if "model" in changed_on_purpose:
+        changed_on_purpose |= set(PAPER_DEFAULTS)
+    out = {}
+    for name in sorted(set(recorded) & set(now)):
+        if name in changed_on_purpose or changed_on_purpose & set(_DERIVED.get(name, ())):
+            continue
+        if recorded[name] != now[name]:
+            try:
+                then = json.loads(recorded[name])
+            except ValueError:
+                then = recorded[name]
+            out[name] = {"recorded": then, "now": json.loads(now[name])}
+    return out
+
+
+def as_recorded(changes: dict) -> str:
+    """The ``--set`` options that replay a recording with the physics it was made with
+    (``physics_changes``). An effective sub-step is set as the ``*_max_step_s`` that fixes
+    it, unless the recorded integrator brings it by default. Lengths and gravity are left
+    out: the metadata holds them in metres, and an option is in the session's units."""
+    fields = {name: change["recorded"] for name, change in changes.items()
+              if name not in _DERIVED and name not in LENGTH_FIELDS and name != "gravity"}
+    try:
+        brought = Physics(**fields)
+    except (TypeError, ValueError):
+        brought = None
+    sets = dict(fields)
+    for name, change in changes.items():
+        if name in _DERIVED and (brought is None or getattr(brought, name) != change["recorded"]):
+            sets[name.replace("_step_s", "_max_step_s")] = change["recorded"]
+    return " ".join(f"--set physics.{key}={value if isinstance(value, str) else json.dumps(value)}"
+                    for key, value in sets.items())
+
+
 def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
            out: str | Path | None = None,
            on_frame: Callable[[ReplayFrame], None] | None = None) -> RunSummary:
@@ -313,7 +374,8 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     session, applied = apply_overrides(recording.session, overrides or {})
     scene = session.build_scene()
     collision = CollisionWorld(scene)
-    summary = RunSummary(session.name, parts=[p.name for p in scene.parts], overrides=applied)
+    summary = RunSummary(session.name, parts=[p.name for p in scene.parts], overrides=applied,
+                         physics_changed=physics_changes(recording, scene.physics, applied))
     writer = None
     if out is not None:
         if Path(out).resolve() == recording.path.resolve():

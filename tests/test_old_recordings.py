@@ -1,0 +1,80 @@
+"""A recording made under physics defaults that have changed since: the replay says what
+changed and how to replay it as it was made, and those options do replay it bit for bit.
+
+``data/shaft_slide_off_before_analytic4.mcap`` is the golden as it was recorded before the
+sliding default became ``analytic4`` with located onsets (commit 7f9381c): a real old file,
+not one made to look old.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from conftest import RECORDINGS, run_cli
+from mcap_edit import copy_recording
+from vade_replay.recording import Recording
+from vade_replay.replay import as_recorded, replay
+
+OLD = Path(__file__).resolve().parent / "data" / "shaft_slide_off_before_analytic4.mcap"
+
+
+def test_an_old_recording_names_the_changed_defaults_and_replays_with_them():
+    summary = replay(Recording(OLD))
+    assert not summary.match
+    changed = summary.physics_changed
+    assert changed["slide_integrator"] == {"recorded": "analytic", "now": "analytic4"}
+    # Keys the old file does not have are what came before them.
+    assert changed["slide_onset"] == {"recorded": "sub_step", "now": "located"}
+    assert changed["slide_step_s"] == {"recorded": 1 / 180, "now": 1 / 60}
+    assert set(changed) == {"slide_integrator", "slide_onset", "slide_step_s"}
+    # analytic brings its own 1/180 s, so the step need not be set.
+    options = as_recorded(changed)
+    assert options == ("--set physics.slide_integrator=analytic "
+                       "--set physics.slide_onset=sub_step")
+    overrides = dict(item.split("=", 1) for item in options.replace("--set ", "").split())
+    again = replay(Recording(OLD), overrides=overrides)
+    assert again.match, again.first_divergence
+    assert again.physics_changed == {}  # what was set on purpose is not a changed default
+
+
+def test_the_cli_says_so_beside_the_divergence(tmp_path):
+    result = run_cli("vade-replay", str(OLD))
+    assert result.returncode == 1
+    lines = result.stdout.splitlines()
+    assert lines[0].startswith("DIVERGED: first divergence at frame")
+    assert lines[1].startswith("note: this recording was made with other physics defaults")
+    assert "vade-replay FILE --set physics.slide_integrator=analytic" in lines[1]
+    many = run_cli("vade-replay", str(OLD), str(RECORDINGS / "gear_pendulum.mcap"))
+    assert "(made with other physics defaults: slide_integrator, slide_onset, slide_step_s)" \
+        in many.stdout
+    as_json = run_cli("vade-replay", str(OLD), "--json")
+    assert json.loads(as_json.stdout)["physics_changed"]["slide_integrator"]["now"] == "analytic4"
+
+
+def test_recordings_of_this_version_and_what_ifs_report_no_changed_default(tmp_path):
+    path = RECORDINGS / "plane_block_wall.mcap"
+    physics = Recording(path).metadata["physics"]
+    # The sub-steps in effect are recorded, not only the fields (None: "the default").
+    assert json.loads(physics["slide_step_s"]) == 1 / 60
+    assert json.loads(physics["turn_step_s"]) == 1 / 120
+    assert replay(Recording(path)).physics_changed == {}
+    what_if = replay(Recording(path), overrides={"physics.friction_dynamic": "0.25",
+                                                 "physics.slide_integrator": "analytic"})
+    assert not what_if.match and what_if.physics_changed == {}
+
+
+def test_a_sub_step_changed_alone_is_set_as_its_bound(tmp_path):
+    """A recording whose default sub-step differs from today's, its integrator not: the
+    options set the step itself."""
+    old = tmp_path / "old_step.mcap"
+
+    def older(name: str, values: dict) -> dict:
+        if name == "physics":
+            values = {**values, "slide_step_s": json.dumps(1 / 240)}
+        return values
+    copy_recording(RECORDINGS / "plane_block_wall.mcap", old, lambda t, i, d: d,
+                   edit_metadata=older)
+    changed = replay(Recording(old)).physics_changed
+    assert changed == {"slide_step_s": {"recorded": 1 / 240, "now": 1 / 60}}
+    assert as_recorded(changed) == f"--set physics.slide_max_step_s={json.dumps(1 / 240)}"
