@@ -101,6 +101,8 @@ def _verdict(summary, overrides: dict[str, str], *, short: bool = False) -> str:
         text = f"what-if ({changes}): " + (
             "the recording is unchanged, " + text if summary.match
             else "departs from the recording: " + summary.first_divergence["text"])
+        if summary.physics_changed and not summary.match and not short:
+            text += "\n" + _physics_note(summary.physics_changed)
     return text
 
 
@@ -108,9 +110,14 @@ def _physics_note(changes: dict) -> str:
     """Why a recording made by an older version may diverge: a default changed since."""
     listed = "; ".join(f"{name} {change['recorded']!r} then, {change['now']!r} now"
                        for name, change in changes.items())
-    options = as_recorded(changes)
-    return (f"note: this recording was made with other physics defaults ({listed})"
-            + (f"; to replay it as it was made: vade-replay FILE {options}" if options else ""))
+    options, left_out = as_recorded(changes)
+    text = f"note: this recording was made with other physics defaults ({listed})"
+    if options:
+        text += f"; to replay it as it was made: vade-replay FILE {options}"
+    if left_out:
+        text += (f" ({', '.join(left_out)} not included: give "
+                 + ("them" if len(left_out) > 1 else "it") + " in the session's units)")
+    return text
 
 
 def _one(args, path: str, overrides: dict[str, str]) -> int:

@@ -29,9 +29,9 @@ def test_an_old_recording_names_the_changed_defaults_and_replays_with_them():
     assert changed["slide_step_s"] == {"recorded": 1 / 180, "now": 1 / 60}
     assert set(changed) == {"slide_integrator", "slide_onset", "slide_step_s"}
     # analytic brings its own 1/180 s, so the step need not be set.
-    options = as_recorded(changed)
+    options, left_out = as_recorded(changed)
     assert options == ("--set physics.slide_integrator=analytic "
-                       "--set physics.slide_onset=sub_step")
+                       "--set physics.slide_onset=sub_step") and left_out == []
     overrides = dict(item.split("=", 1) for item in options.replace("--set ", "").split())
     again = replay(Recording(OLD), overrides=overrides)
     assert again.match, again.first_divergence
@@ -77,4 +77,41 @@ def test_a_sub_step_changed_alone_is_set_as_its_bound(tmp_path):
                    edit_metadata=older)
     changed = replay(Recording(old)).physics_changed
     assert changed == {"slide_step_s": {"recorded": 1 / 240, "now": 1 / 60}}
-    assert as_recorded(changed) == f"--set physics.slide_max_step_s={json.dumps(1 / 240)}"
+    assert as_recorded(changed) == (f"--set physics.slide_max_step_s={json.dumps(1 / 240)}", [])
+
+
+def test_an_old_recordings_own_sub_steps_are_the_ones_it_ran_with(tmp_path):
+    """Without ``*_step_s`` metadata the step in effect was the recording's own bound, else
+    the shared one (1/240 s by default before 9e8e766), else the default of the time."""
+    def as_old(extra: dict):
+        def older(name: str, values: dict) -> dict:
+            if name != "physics":
+                return values
+            values = {k: v for k, v in values.items() if k not in ("slide_step_s",
+                                                                     "turn_step_s")}
+            return {**values, "slide_integrator": '"analytic"', "slide_onset": '"sub_step"',
+                    **{k: json.dumps(v) for k, v in extra.items()}}
+        path = tmp_path / f"old_{len(list(tmp_path.iterdir()))}.mcap"
+        copy_recording(RECORDINGS / "plane_block_wall.mcap", path, lambda t, i, d: d,
+                       edit_metadata=older)
+        return replay(Recording(path)).physics_changed
+    own = as_old({"slide_max_step_s": 0.01})
+    assert own["slide_step_s"] == {"recorded": 0.01, "now": 1 / 60}
+    shared = as_old({"onbase_max_step_s": 1 / 240})
+    assert shared["slide_step_s"]["recorded"] == 1 / 240
+    assert shared["turn_step_s"] == {"recorded": 1 / 240, "now": 1 / 120}
+    options, _ = as_recorded(shared)
+    # The shared bound brings both steps back; nothing more is set.
+    assert "--set physics.onbase_max_step_s=" + json.dumps(1 / 240) in options
+    assert "slide_max_step_s" not in options and "turn_max_step_s" not in options
+    plain = as_old({})
+    assert plain["slide_step_s"]["recorded"] == 1 / 180 and "turn_step_s" not in plain
+
+
+def test_lengths_and_defaults_left_to_none_are_named_not_set():
+    options, left_out = as_recorded({
+        "contact_tolerance": {"recorded": 2e-4, "now": 1e-4},
+        "slide_max_step_s": {"recorded": None, "now": 0.01},
+        "friction_dynamic": {"recorded": 0.25, "now": 0.2}})
+    assert options == "--set physics.friction_dynamic=0.25"
+    assert left_out == ["contact_tolerance", "slide_max_step_s"]

@@ -309,24 +309,42 @@ def _with_file(items: Iterator, path: Path) -> Iterator:
 # overridden.
 _DERIVED = {"slide_step_s": ("slide_integrator", "slide_max_step_s", "onbase_max_step_s"),
             "turn_step_s": ("turn_integrator", "turn_max_step_s", "onbase_max_step_s")}
-# What a recording made before a physics key existed was made with (JSON text): the
-# behaviour that key's other value keeps for replaying such recordings as they were made.
-_BEFORE_THE_KEY = {"slide_onset": '"sub_step"', "slide_step_s": json.dumps(1.0 / 180.0),
-                   "turn_step_s": json.dumps(1.0 / 120.0)}
+# What a recording made before a physics key existed was made with: the behaviour that
+# the key's other value keeps, for replaying such recordings as they were made.
+_BEFORE_THE_KEY = {"slide_onset": "sub_step"}
+
+
+def _step_in_effect(recorded: dict, bound: str, before: float):
+    """The sub-step a recording without ``*_step_s`` metadata ran with: its own bound, else
+    the shared one, else the default of the time (sliding 1/180 s, turning 1/120 s)."""
+    for name in (bound, "onbase_max_step_s"):
+        value = recorded.get(name)
+        if value is not None:
+            return value
+    return before
 
 
 def physics_changes(recording: Recording, physics, applied: dict) -> dict:
     """Physics of a replay that differs from what ``recording`` was made with (its
-    ``physics`` metadata; a key it lacks is what came before that key, ``_BEFORE_THE_KEY``),
-    leaving out what the overrides ``applied`` changed on purpose: what a newer version's
-    defaults changed. Name -> ``{"recorded": ..., "now": ...}``. Empty for a recording
-    without physics metadata (not written by vade-record)."""
-    recorded = dict(recording.metadata.get("physics") or {})
+    ``physics`` metadata; a key it lacks is what came before that key), leaving out what
+    the overrides ``applied`` changed on purpose: what a newer version's defaults changed.
+    Name -> ``{"recorded": ..., "now": ...}``. Empty for a recording without physics
+    metadata (not written by vade-record)."""
+    recorded = {}
+    for name, text in (recording.metadata.get("physics") or {}).items():
+        try:
+            recorded[name] = json.loads(text)
+        except ValueError:
+            recorded[name] = text
     if not recorded:
         return {}
     for name, before in _BEFORE_THE_KEY.items():
         recorded.setdefault(name, before)
-    now = physics_metadata(physics)
+    if "slide_step_s" not in recorded:
+        recorded["slide_step_s"] = _step_in_effect(recorded, "slide_max_step_s", 1.0 / 180.0)
+    if "turn_step_s" not in recorded:
+        recorded["turn_step_s"] = _step_in_effect(recorded, "turn_max_step_s", 1.0 / 120.0)
+    now = {name: json.loads(text) for name, text in physics_metadata(physics).items()}
     changed_on_purpose = {key[8:] for key in applied}
     if "model" in changed_on_purpose:
         changed_on_purpose |= set(PAPER_DEFAULTS)
@@ -335,21 +353,25 @@ def physics_changes(recording: Recording, physics, applied: dict) -> dict:
         if name in changed_on_purpose or changed_on_purpose & set(_DERIVED.get(name, ())):
             continue
         if recorded[name] != now[name]:
-            try:
-                then = json.loads(recorded[name])
-            except ValueError:
-                then = recorded[name]
-            out[name] = {"recorded": then, "now": json.loads(now[name])}
+            out[name] = {"recorded": recorded[name], "now": now[name]}
     return out
 
 
-def as_recorded(changes: dict) -> str:
+# Left out of as_recorded's options: the metadata holds them in metres, an option is in the
+# session's units.
+_IN_SESSION_UNITS = frozenset(LENGTH_FIELDS) | {"gravity"}
+
+
+def as_recorded(changes: dict) -> tuple[str, list[str]]:
     """The ``--set`` options that replay a recording with the physics it was made with
-    (``physics_changes``). An effective sub-step is set as the ``*_max_step_s`` that fixes
-    it, unless the recorded integrator brings it by default. Lengths and gravity are left
-    out: the metadata holds them in metres, and an option is in the session's units."""
+    (``physics_changes``), and the names left out of them: lengths and gravity (in metres
+    in the metadata, in the session's units in an option) and ``null`` (a field left to its
+    default then, which an option cannot say). An effective sub-step is set as the
+    ``*_max_step_s`` that fixes it, unless the recorded integrator brings it by default."""
+    left_out = [name for name, change in changes.items()
+                if name in _IN_SESSION_UNITS or change["recorded"] is None]
     fields = {name: change["recorded"] for name, change in changes.items()
-              if name not in _DERIVED and name not in LENGTH_FIELDS and name != "gravity"}
+              if name not in _DERIVED and name not in left_out}
     try:
         brought = Physics(**fields)
     except (TypeError, ValueError):
@@ -358,8 +380,8 @@ def as_recorded(changes: dict) -> str:
     for name, change in changes.items():
         if name in _DERIVED and (brought is None or getattr(brought, name) != change["recorded"]):
             sets[name.replace("_step_s", "_max_step_s")] = change["recorded"]
-    return " ".join(f"--set physics.{key}={value if isinstance(value, str) else json.dumps(value)}"
-                    for key, value in sets.items())
+    return (" ".join(f"--set physics.{key}={value if isinstance(value, str) else json.dumps(value)}"
+                     for key, value in sets.items()), left_out)
 
 
 def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
