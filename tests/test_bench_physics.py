@@ -116,6 +116,24 @@ def test_references_are_checked_and_far_below_the_errors_they_judge(short_run):
     assert refs["gear_period_undamped"]["value"] < 1e-7
 
 
+def test_the_defaults_on_the_goldens_sessions_are_as_accurate_as_on_the_test_motions(
+        short_run):
+    """Real motion (a part starting to slip as the user tilts the base, stopping, blocked)
+    at the defaults, against a converged run whose own error the second one bounds."""
+    from pathlib import Path
+    _, doc = short_run
+    rows = {r["golden"]: r for r in doc["goldens"]}
+    goldens = Path(__file__).resolve().parents[1] / "recordings"
+    assert set(rows) == {p.stem for p in goldens.glob("*.json")}
+    for name, r in rows.items():
+        assert r["converged_events_agree"] and r["events_as_converged"], name
+        assert r["converged_runs_agree_m"] < 1e-7 and r["converged_runs_agree_rad"] < 1e-6, name
+        assert r["position_error_m"] < 1e-7 and r["rotation_error_rad"] < 1e-6, name
+    # The sliding goldens: where the onset of slipping used to cost ~1 mm.
+    for name in ("plane_block_edge", "plane_block_wall", "shaft_slide_off"):
+        assert 0.0 < rows[name]["position_error_m"] < 1e-8, name
+
+
 def test_defaults_and_targets(short_run):
     _, doc = short_run
     defaults = {d["motion"]: d for d in doc["defaults"]}
