@@ -220,6 +220,8 @@ class CollisionWorld:
                 _bvh_of(body.vertices, part_faces[result.b1:result.b1 + 1]),
                 fcl.CollisionObject(_bvh_of(base, base_faces[result.b2:result.b2 + 1]),
                                     fcl.Transform()))
+        elif witness is not None:
+            del self._witnesses[key]  # out of contact: no pair test until it touches again
         return d
 
     def support_distance(self, part: str, mate: int, point: sp.Vec3) -> float:
