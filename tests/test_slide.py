@@ -316,6 +316,33 @@ def test_the_onset_of_slipping_is_found_within_the_sub_step():
     assert abs(x[0] - exact(0.25)) < 1e-11 and x[1] == 0.0 and v[0] > 0.0
 
 
+def test_a_stop_while_the_base_turns_keeps_analytic4_fourth_order():
+    """Friction stops the part (5 degree plane, 0.3 m/s across it, the base turning at
+    2 rad/s about its normal) at 0.203 s, inside a sub-step: the instant is bisected on the
+    whole scheme, not taken from one half-flow (whose combined gravity is only right with
+    the other's), so the error still falls 16x a halving (a review measured 8x before)."""
+    def q(t):
+        return sp.quat_mul(sp.quat_axis_angle((1.0, 0.0, 0.0), math.radians(5.0)),
+                           sp.quat_axis_angle((0.0, 0.0, 1.0), 2.0 * t))
+
+    def g(t):
+        return sp.quat_rotate(sp.quat_conj(q(t)), (0.0, 0.0, -G))
+
+    def path(k):
+        return onbase.GravityPath((0.0, 0.0, -G), q(k / 60.0), q((k + 1) / 60.0))
+    dirs = _plane_dirs()
+    v0 = (0.0, 0.3)
+    (ref,), t_stop = _coulomb_reference(lambda t: onbase.tangential(dirs, g(t)),
+                                        lambda t: -g(t)[2], FD, v0, 1.0, [1.0])
+    assert 0.19 < t_stop < 0.21
+    results = [_slide_frames(path, v0, s, "analytic4") for s in (1, 2, 4, 8)]
+    assert all(v == (0.0, 0.0) for _, v in results)  # it stays where it stopped
+    errors = [math.dist(x, ref) for x, _ in results]
+    assert errors[0] < 1e-9
+    for coarse, fine in zip(errors, errors[1:]):
+        assert 13.0 < coarse / fine < 19.0, errors
+
+
 def test_along_the_slope_and_on_an_axis_the_schemes_agree_bit_for_bit():
     """Velocity along g_t (from rest, base tilting about a horizontal axis) and any axis:
     ``analytic`` is the constant-acceleration update of ``midpoint``, to the last bit."""
