@@ -10,10 +10,15 @@ Checks against the base run in base axes, so the base itself never moves in them
   against the base without its feature faces: is anything else of the base in the way?
 - ``SKIP_COAXIAL`` (``SKIP_CYLINDER``): the whole part against the base without the faces
   inside the shaft's radius (an equal-diameter coaxial fit is not a collision).
-- ``NOCARE_COPLANAR``: the plain check, whole part against whole base. A query first runs a cheap
-bounding test (a sphere around the part's centre of mass against each object's world
-box) and asks fcl only for the objects that can touch. ``stats`` counts what was asked,
-for the replay summary; it is instrumentation and never feeds back into the simulation.
+- ``NOCARE_COPLANAR``: the plain check, whole part against whole base.
+
+A query first runs a cheap bounding test (a sphere around the part's centre of mass against
+each object's world box) and asks fcl only for the objects that can touch. "Still within
+the tolerance of the base?" is first asked of the pair of triangles that last was
+(``base_distance_within``: a witness pair, kept as one-triangle BVHs built when found); only
+its yes is taken. ``stats`` counts what was asked (fcl queries, bounding tests, witness
+tests), for the replay summary; it is instrumentation and never feeds back into the
+simulation.
 """
 
 from __future__ import annotations

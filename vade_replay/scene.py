@@ -32,11 +32,12 @@ MESH_TYPES = {".stl": "stl", ".obj": "obj", ".glb": "glb", ".gltf": "gltf", ".pl
 
 # Default sub-steps on the base, chosen by vade-bench (BENCHMARKS.md): at 60 Hz frames,
 # yoshida6 turning at two sub-steps is within 1.3e-7 rad of the reference for the gear
-# pendulum at 0.3 ms per simulated second; analytic4 sliding is exact on a still base at any
-# step and within 1e-8 m with the base turning at 1 or 4 rad/s at one sub-step a frame. The
-# default step goes with the integrator: the second-order schemes keep the 1/180 s chosen
-# for them (analytic, the default before analytic4, is within 1e-5 m at 1 rad/s there), so
-# that a recording made with one replays with ``--set physics.slide_integrator=NAME`` alone.
+# pendulum at 0.09 ms per simulated second (compiled); analytic4 sliding is exact on a
+# still base at any step and within 1e-8 m with the base turning at 1 or 4 rad/s at one
+# sub-step a frame. The default step goes with the integrator: the second-order schemes
+# keep the 1/180 s chosen for them (analytic, the default before analytic4, is within
+# 1e-5 m at 1 rad/s there), so that a recording made with one needs only its integrator
+# (and, before slide_onset existed, slide_onset=sub_step) set to replay as it was made.
 TURN_STEP_S = 1.0 / 120.0
 SLIDE_STEP_S = 1.0 / 180.0
 SLIDE_STEPS_S = {"analytic4": 1.0 / 60.0}

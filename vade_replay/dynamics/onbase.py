@@ -23,7 +23,8 @@ that would reverse the velocity stops the part at the instant the velocity reach
 With ``located`` (physics ``slide_onset: "located"``, the default) the instant a part at rest
 starts to slip is found within the sub-step (``_onset``: the static test on the frame's
 gravity path, sampled and bisected), and after a stop the scheme resumes from the next such
-instant; between them each scheme takes closed-form flows under frozen gravity.
+instant; between them ``analytic``, ``analytic4`` and ``midpoint`` take closed-form flows
+under frozen gravity.
 ``slide_integrator``:
 
 - ``analytic4`` (default, one sub-step a frame): two exact flows of h/2 under gravity (``g_t``
@@ -46,6 +47,8 @@ instant; between them each scheme takes closed-form flows under frozen gravity.
   located. Friction never reverses it: a sub-step whose new velocity points against the
   old one ends at rest where it started (``x += 0 h``, the scheme's own position update
   with the velocity it stopped at); from rest the static test decides, as for the others.
+- ``paper``: eqs. 3-4 once per frame under the frame's end gravity, no sub-steps: the angle
+  test decides each frame, and friction opposes the downhill direction.
 
 Turning: ``J w' = m ((r_perp x g) . u) - f_r w`` with ``r_perp(theta)`` the CM offset turned
 by ``theta`` about the shaft. Integrators:
