@@ -26,11 +26,13 @@ def test_an_old_recording_names_the_changed_defaults_and_replays_with_them():
     assert changed["slide_integrator"] == {"recorded": "analytic", "now": "analytic4"}
     # Keys the old file does not have are what came before them.
     assert changed["slide_onset"] == {"recorded": "sub_step", "now": "located"}
+    assert changed["slide_off"] == {"recorded": "frame_end", "now": "located"}
     assert changed["slide_step_s"] == {"recorded": 1 / 180, "now": 1 / 60}
-    assert set(changed) == {"slide_integrator", "slide_onset", "slide_step_s"}
+    assert set(changed) == {"slide_integrator", "slide_onset", "slide_off", "slide_step_s"}
     # analytic brings its own 1/180 s, so the step need not be set.
     options, left_out = as_recorded(changed)
     assert options == ("--set physics.slide_integrator=analytic "
+                       "--set physics.slide_off=frame_end "
                        "--set physics.slide_onset=sub_step") and left_out == []
     overrides = dict(item.split("=", 1) for item in options.replace("--set ", "").split())
     again = replay(Recording(OLD), overrides=overrides)
@@ -46,8 +48,8 @@ def test_the_cli_says_so_beside_the_divergence(tmp_path):
     assert lines[1].startswith("note: this recording was made with other physics defaults")
     assert "vade-replay FILE --set physics.slide_integrator=analytic" in lines[1]
     many = run_cli("vade-replay", str(OLD), str(RECORDINGS / "gear_pendulum.mcap"))
-    assert "(made with other physics defaults: slide_integrator, slide_onset, slide_step_s)" \
-        in many.stdout
+    assert ("(made with other physics defaults: slide_integrator, slide_off, slide_onset, "
+            "slide_step_s)") in many.stdout
     as_json = run_cli("vade-replay", str(OLD), "--json")
     assert json.loads(as_json.stdout)["physics_changed"]["slide_integrator"]["now"] == "analytic4"
 
@@ -90,7 +92,7 @@ def test_an_old_recordings_own_sub_steps_are_the_ones_it_ran_with(tmp_path):
             values = {k: v for k, v in values.items() if k not in ("slide_step_s",
                                                                      "turn_step_s")}
             return {**values, "slide_integrator": '"analytic"', "slide_onset": '"sub_step"',
-                    **{k: json.dumps(v) for k, v in extra.items()}}
+                    "slide_off": '"frame_end"', **{k: json.dumps(v) for k, v in extra.items()}}
         path = tmp_path / f"old_{len(list(tmp_path.iterdir()))}.mcap"
         copy_recording(RECORDINGS / "plane_block_wall.mcap", path, lambda t, i, d: d,
                        edit_metadata=older)

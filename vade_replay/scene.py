@@ -42,6 +42,7 @@ TURN_STEP_S = 1.0 / 120.0
 SLIDE_STEP_S = 1.0 / 180.0
 SLIDE_STEPS_S = {"analytic4": 1.0 / 60.0}
 SLIDE_ONSETS = ("located", "sub_step")
+SLIDE_OFFS = ("located", "frame_end")
 
 
 @dataclass(frozen=True)
@@ -72,6 +73,9 @@ class Physics:
     slide_integrator: str = "analytic4"      # analytic: the default before; paper: eq. 4
     # located: stop and slip instants found within the sub-step; sub_step: before 2026-11-22
     slide_onset: str = "located"
+    # located: the instant a part slides off the base found within the frame; frame_end:
+    # decided at the frame's end, as before 2026-11-22
+    slide_off: str = "located"
     turn_integrator: str = "yoshida6"        # paper: eq. 11 once per frame
     # Longest sub-steps on the base, read through turn_step_s / slide_step_s. None: the
     # default below, or onbase_max_step_s where a session sets that (for both).
@@ -88,6 +92,8 @@ class Physics:
             raise ValueError(f"slide_integrator must be one of {SLIDE_INTEGRATORS}")
         if self.slide_onset not in SLIDE_ONSETS:
             raise ValueError(f"slide_onset must be one of {SLIDE_ONSETS}")
+        if self.slide_off not in SLIDE_OFFS:
+            raise ValueError(f"slide_off must be one of {SLIDE_OFFS}")
         if self.turn_integrator not in TURN_INTEGRATORS:
             raise ValueError(f"turn_integrator must be one of {TURN_INTEGRATORS}")
 

@@ -626,16 +626,20 @@ def _relative_rates(body: Body, mate: cn.Mate, m: OnBase, slide_rate, angle, ang
 
 
 def _leave(f: _Frame, index: int, cause: Cause, rel: sp.Pose, v_rel: sp.Vec3,
-           w_rel: sp.Vec3) -> None:
-    """Off the base into free flight, with the base's own motion added to the part's."""
+           w_rel: sp.Vec3, *, at: float = 1.0) -> None:
+    """Off the base into free flight, with the base's own motion added to the part's; at
+    the fraction ``at`` of the frame (the base where the frame's path has it then)."""
     part = f.parts[index]
     body = f.scene.parts[index]
-    pose = f.base_pose.compose(rel)  # type: ignore[union-attr]
+    base = f.base_pose if at >= 1.0 or f.base_prev is None else _BasePath(
+        f.base_prev, f.base_pose, 0.0, 0.0).at(at)  # type: ignore[arg-type]
+    pose = base.compose(rel)  # type: ignore[union-attr]
     v_base, w_base = _base_motion(f, rel.apply(body.center_of_mass))
-    q = f.base_pose.rotation  # type: ignore[union-attr]
+    q = base.rotation  # type: ignore[union-attr]
     v = sp.add(sp.quat_rotate(q, v_rel), v_base)
     w = sp.add(sp.quat_rotate(q, w_rel), w_base)
-    flight = free.start(t_ns=f.t_ns, cm=pose.apply(body.center_of_mass), velocity=v,
+    t_ns = f.t_ns if at >= 1.0 else f.t_prev_ns + int(at * (f.t_ns - f.t_prev_ns))
+    flight = free.start(t_ns=t_ns, cm=pose.apply(body.center_of_mass), velocity=v,
                         omega_world=w, world_from_part=pose,
                         part_from_principal=body.part_from_principal,
                         principal_moments=body.principal_moments, base_clear=False)
@@ -800,8 +804,19 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
             a1 = m.angle + lam * (a1 - m.angle)
     rel = cn.relative_pose(mate, m.base_from_snap, x1, a1)
     if not _still_on_base(f, body, mate, m, rel, x1):
-        v_rel, w_rel = _relative_rates(body, mate, m, v1, a1, w1)
-        _leave(f, index, Cause.SLID_OFF, rel, v_rel, w_rel)
+        lam = _LEAVE_AT_END if blocked is not None or physics.slide_off != "located" \
+            else _leaving_fraction(f, body, mate, m, x1, v1, a1, w1)
+        if lam >= 1.0:
+            v_rel, w_rel = _relative_rates(body, mate, m, v1, a1, w1)
+            _leave(f, index, Cause.SLID_OFF, rel, v_rel, w_rel)
+            return
+        # Off the base part-way through the frame: free flight from that instant on, the
+        # rest of the frame flown (contact search included) as any flight is.
+        xl, vl, al, wl = _path_at(m, x1, v1, a1, w1, lam, f.dt_s)
+        v_rel, w_rel = _relative_rates(body, mate, m, vl, al, wl)
+        _leave(f, index, Cause.SLID_OFF, cn.relative_pose(mate, m.base_from_snap, xl, al),
+               v_rel, w_rel, at=lam)
+        _fly(f, index)
         return
     new = m.moved(x1, v1, a1, w1)
     if blocked is not None:
@@ -953,6 +968,44 @@ def _distance(a: tuple[float, ...], b: tuple[float, ...]) -> float:
     for i in range(min(len(a), len(b))):
         total += (b[i] - a[i]) ** 2
     return math.sqrt(total)
+
+
+_LEAVE_AT_END = 1.0
+_LEAVING_BISECTIONS = 40
+
+
+def _path_at(m: OnBase, x1: tuple[float, ...], v1: tuple[float, ...], a1: float, w1: float,
+             lam: float, dt: float) -> tuple[tuple[float, ...], tuple[float, ...], float, float]:
+    """The coordinates and rates at the fraction ``lam`` of the frame: cubic Hermite between
+    the frame's ends (exact for a constant acceleration), rates linear."""
+    l2, l3 = lam * lam, lam * lam * lam
+    h00, h10, h01, h11 = 2.0 * l3 - 3.0 * l2 + 1.0, l3 - 2.0 * l2 + lam, -2.0 * l3 + 3.0 * l2, \
+        l3 - l2
+    x = tuple(h00 * p + h10 * dt * u + h01 * q + h11 * dt * w
+              for p, u, q, w in zip(m.slide, m.slide_rate, x1, v1))
+    v = tuple(u + lam * (w - u) for u, w in zip(m.slide_rate, v1))
+    a = h00 * m.angle + h10 * dt * m.angle_rate + h01 * a1 + h11 * dt * w1
+    return x, v, a, m.angle_rate + lam * (w1 - m.angle_rate)
+
+
+def _leaving_fraction(f: _Frame, body: Body, mate: cn.Mate, m: OnBase,
+                      x1: tuple[float, ...], v1: tuple[float, ...], a1: float,
+                      w1: float) -> float:
+    """The fraction of the frame at which the part left the base (off at the frame's end,
+    on at its start): bisected along the frame's path (``_path_at``). Deciding it at the
+    frame's end kept the part on the base up to a frame too long: it started to fall up to
+    16 ms late, which the rest of its flight carried on (0.3 mm at once, and g t dt more
+    after a fall of t)."""
+    dt = f.dt_s
+    lo, hi = 0.0, 1.0
+    for _ in range(_LEAVING_BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        x, _, a, _ = _path_at(m, x1, v1, a1, w1, mid, dt)
+        if _still_on_base(f, body, mate, m, cn.relative_pose(mate, m.base_from_snap, x, a), x):
+            lo = mid
+        else:
+            hi = mid
+    return hi
 
 
 def _still_on_base(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, rel: sp.Pose,
