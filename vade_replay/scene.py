@@ -127,7 +127,8 @@ class Physics:
 
 
 PAPER_DEFAULTS = {"free_rotation": "constant_omega", "release_velocity": "two_frame",
-                  "slide_integrator": "paper", "turn_integrator": "paper"}
+                  "slide_integrator": "paper", "turn_integrator": "paper",
+                  "slide_off": "frame_end"}  # the paper decides sliding frame by frame
 LENGTH_FIELDS = ("grab_radius", "contact_tolerance")
 
 
