@@ -48,6 +48,10 @@ def main(argv: list[str] | None = None) -> int:
         if args.check:
             summary = replay(Recording(golden))
             status = "match" if summary.match else f"DIVERGED {summary.first_divergence['text']}"
+            if not summary.match and summary.physics_changed:
+                status += (f" (recorded with other physics defaults: "
+                           f"{', '.join(summary.physics_changed)}; if that change is meant, "
+                           "re-record with vade-goldens)")
             failed += not summary.match
         else:
             summary = record(session_mod.load(path), golden)

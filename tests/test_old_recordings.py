@@ -117,3 +117,15 @@ def test_lengths_and_defaults_left_to_none_are_named_not_set():
         "friction_dynamic": {"recorded": 0.25, "now": 0.2}})
     assert options == "--set physics.friction_dynamic=0.25"
     assert left_out == ["contact_tolerance", "slide_max_step_s"]
+
+
+def test_vade_goldens_check_says_a_default_changed_since_a_golden_was_recorded(tmp_path):
+    import shutil
+    shutil.copy(RECORDINGS / "shaft_slide_off.json", tmp_path / "shaft_slide_off.json")
+    shutil.copy(OLD, tmp_path / "shaft_slide_off.mcap")
+    result = run_cli("vade-goldens", "--check", "--dir", str(tmp_path))
+    assert result.returncode == 1
+    assert "DIVERGED first divergence at frame" in result.stdout
+    assert ("recorded with other physics defaults: slide_integrator, slide_off, slide_onset, "
+            "slide_step_s; if that change is meant, re-record with vade-goldens") in result.stdout
+
