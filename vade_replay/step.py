@@ -803,6 +803,16 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
                                      motion=replace(m, slide_rate=tuple(0.0 for _ in v1),
                                                     angle_rate=0.0)), Cause.NUMERICAL_FAULT)
         return
+    if physics.slide_off == "located" and mate.kind != "axis" and dt > 0.0:
+        lift = _lift_off_fraction(f, mate)
+        if lift is not None:
+            # Gravity turned to pull it off the plane it slides on: it separates then.
+            xl, vl, al, wl = _path_at(m, x1, v1, a1, w1, lift, dt)
+            v_rel, w_rel = _relative_rates(body, mate, m, vl, al, wl)
+            _leave(f, index, Cause.LIFTED_OFF, cn.relative_pose(mate, m.base_from_snap, xl, al),
+                   v_rel, w_rel, at=lift)
+            _fly(f, index)
+            return
     blocked = None
     if x1 != m.slide or a1 != m.angle:
         m, blocked = _sweep(f, body, mate, m, x1, a1)
@@ -984,16 +994,20 @@ _LEAVING_ITERATIONS = 40  # at most; it stops at 0.1 ns
 
 def _path_at(m: OnBase, x1: tuple[float, ...], v1: tuple[float, ...], a1: float, w1: float,
              lam: float, dt: float) -> tuple[tuple[float, ...], tuple[float, ...], float, float]:
-    """The coordinates and rates at the fraction ``lam`` of the frame: cubic Hermite between
-    the frame's ends (exact for a constant acceleration), rates linear."""
+    """The coordinates and rates at the fraction ``lam`` of the frame: the cubic Hermite
+    between the frame's ends and its derivative (exact while the acceleration changes
+    linearly, as it does to first order while the base turns)."""
     l2, l3 = lam * lam, lam * lam * lam
     h00, h10, h01, h11 = 2.0 * l3 - 3.0 * l2 + 1.0, l3 - 2.0 * l2 + lam, -2.0 * l3 + 3.0 * l2, \
         l3 - l2
+    d00, d10, d11 = 6.0 * l2 - 6.0 * lam, 3.0 * l2 - 4.0 * lam + 1.0, 3.0 * l2 - 2.0 * lam
     x = tuple(h00 * p + h10 * dt * u + h01 * q + h11 * dt * w
               for p, u, q, w in zip(m.slide, m.slide_rate, x1, v1))
-    v = tuple(u + lam * (w - u) for u, w in zip(m.slide_rate, v1))
+    v = tuple((d00 * (p - q)) / dt + d10 * u + d11 * w
+              for p, u, q, w in zip(m.slide, m.slide_rate, x1, v1))
     a = h00 * m.angle + h10 * dt * m.angle_rate + h01 * a1 + h11 * dt * w1
-    return x, v, a, m.angle_rate + lam * (w1 - m.angle_rate)
+    w_lam = d00 * (m.angle - a1) / dt + d10 * m.angle_rate + d11 * w1
+    return x, v, a, w_lam
 
 
 def _leaving_fraction(f: _Frame, body: Body, mate: cn.Mate, m: OnBase,
@@ -1037,6 +1051,33 @@ def _leaving_fraction(f: _Frame, body: Body, mate: cn.Mate, m: OnBase,
             if side == -1:
                 f_hi *= 0.5
             side = -1
+    return hi
+
+
+def _lift_off_fraction(f: _Frame, mate: cn.Mate) -> float | None:
+    """When, within the frame, gravity (base axes, along the frame's turn of the base) first
+    pulls a part off the plane(s) it slides on, or None if it does not by the frame's end;
+    bisected on the gravity path (no geometry is asked)."""
+    q0 = (f.base_prev or f.base_pose).rotation  # type: ignore[union-attr]
+    path = onbase.GravityPath(f.scene.physics.gravity_slide, q0,
+                              f.base_pose.rotation)  # type: ignore[union-attr]
+    axis = _axis(mate)
+
+    def lifted(tau: float) -> bool:
+        return onbase.normal_load(mate.kind, mate.base_dirs, axis, path.at(tau))[1]
+    if not lifted(1.0):
+        return None
+    lo, hi = 0.0, 1.0
+    if lifted(0.0):
+        return 0.0
+    for _ in range(_LEAVING_ITERATIONS):
+        if (hi - lo) * f.dt_s < 1e-10:
+            break
+        mid = 0.5 * (lo + hi)
+        if lifted(mid):
+            hi = mid
+        else:
+            lo = mid
     return hi
 
 
