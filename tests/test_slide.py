@@ -408,25 +408,15 @@ def test_off_a_turning_moving_base_with_the_bases_velocity_at_that_instant():
     (sub-steps 1/1920 s) has it. Leaving with the base's average velocity over the frame
     instead of its velocity at the instant was 6.7 mm off (a review); leaving at the
     frame's end is 7 mm off."""
-    from vade_replay.collision import CollisionWorld
-    from vade_replay.frames import DeviceSample, TrackerFrame
-    from vade_replay.step import LEFT, RIGHT, step
 
     def base(t):
         return sp.Pose((0.1 * t, 0.0, 1.0), sp.quat_axis_angle((0.0, 0.0, 1.0), 2.0 * t))
 
     def final_cm(rate, physics):
         scene = plate_scene(physics)
-        state = on_base(scene, base(0.0), sp.Pose((0.0, 0.9, 0.04), sp.IDENTITY_QUAT),
-                        mode=Mode.ONBASESLIDE, slide_rate=(1.0, 0.0))
-        world = CollisionWorld(scene)
-        for n in range(1, rate // 2 + 1):
-            t_ns = n * 10**9 // rate
-            b = base(t_ns * 1e-9)
-            inputs = TrackerFrame(n, t_ns, ((LEFT, DeviceSample(b.position, b.rotation, True)),
-                                            (RIGHT, DeviceSample((5.0, 5.0, 5.0),
-                                                                 sp.IDENTITY_QUAT, False))))
-            state, _ = step(scene, world, state, inputs)
+        for _, state, _ in _tracked(scene, base, sp.Pose((0.0, 0.9, 0.04), sp.IDENTITY_QUAT),
+                                    (1.0, 0.0), rate, 0.5):
+            pass
         assert state.parts[0].mode is Mode.INSPACE
         return state.parts[0].pose.apply(scene.parts[0].center_of_mass)
     reference = final_cm(3840, {"slide_max_step_s": 1 / 1920})
@@ -440,9 +430,6 @@ def test_a_sliding_part_lifts_off_when_the_plane_turns_past_vertical():
     off, and it flies from that instant. After 1 s it is where the same motion tracked at
     3840 Hz has it. Before, a sliding part (unlike a resting one) was never lifted off: it
     hung under the plate until it slid off an edge (``slide_off: frame_end`` keeps that)."""
-    from vade_replay.collision import CollisionWorld
-    from vade_replay.frames import DeviceSample, TrackerFrame
-    from vade_replay.step import LEFT, RIGHT, step
     rate_deg = 2.2 * 60.0
 
     def base(t):
@@ -451,17 +438,10 @@ def test_a_sliding_part_lifts_off_when_the_plane_turns_past_vertical():
 
     def final(rate, physics):
         scene = plate_scene(physics, size=(0.6, 8.0, 0.04))
-        state = on_base(scene, base(0.0), sp.Pose((0.0, 0.0, 0.04), sp.IDENTITY_QUAT),
-                        mode=Mode.ONBASESLIDE, slide_rate=(0.2, 0.0))
-        world = CollisionWorld(scene)
         lifted_at = None
-        for n in range(1, rate + 1):
-            t_ns = n * 10**9 // rate
-            b = base(t_ns * 1e-9)
-            inputs = TrackerFrame(n, t_ns, ((LEFT, DeviceSample(b.position, b.rotation, True)),
-                                            (RIGHT, DeviceSample((5.0, 5.0, 5.0),
-                                                                 sp.IDENTITY_QUAT, False))))
-            state, events = step(scene, world, state, inputs)
+        for n, state, events in _tracked(scene, base, sp.Pose((0.0, 0.0, 0.04),
+                                                              sp.IDENTITY_QUAT),
+                                         (0.2, 0.0), rate, 1.0):
             if any(e.cause == "gravity_lifts_off" for e in events):
                 lifted_at = n
         return state.parts[0], lifted_at, scene
@@ -472,4 +452,22 @@ def test_a_sliding_part_lifts_off_when_the_plane_turns_past_vertical():
     assert math.dist(cm, reference.pose.apply(scene.parts[0].center_of_mass)) < 1e-6
     glued, never, _ = final(60, {"slide_off": "frame_end"})
     assert never is None and math.dist(glued.pose.apply(scene.parts[0].center_of_mass), cm) > 0.1
+
+
+def _tracked(scene, base, rel, slide_rate, rate, seconds):
+    """The cube sliding from ``rel`` on the plate held at ``base(t)``, tracked at ``rate`` Hz:
+    (frame, state, events) each frame."""
+    from vade_replay.collision import CollisionWorld
+    from vade_replay.frames import DeviceSample, TrackerFrame
+    from vade_replay.step import LEFT, RIGHT, step
+    state = on_base(scene, base(0.0), rel, mode=Mode.ONBASESLIDE, slide_rate=slide_rate)
+    world = CollisionWorld(scene)
+    for n in range(1, round(rate * seconds) + 1):
+        t_ns = n * 10**9 // rate
+        b = base(t_ns * 1e-9)
+        inputs = TrackerFrame(n, t_ns, ((LEFT, DeviceSample(b.position, b.rotation, True)),
+                                        (RIGHT, DeviceSample((5.0, 5.0, 5.0), sp.IDENTITY_QUAT,
+                                                             False))))
+        state, events = step(scene, world, state, inputs)
+        yield n, state, events
 
