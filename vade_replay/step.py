@@ -1058,15 +1058,15 @@ def _lift_off_fraction(f: _Frame, mate: cn.Mate) -> float | None:
     """When, within the frame, gravity (base axes, along the frame's turn of the base) first
     pulls a part off the plane(s) it slides on, or None if it does not by the frame's end;
     bisected on the gravity path (no geometry is asked)."""
-    q0 = (f.base_prev or f.base_pose).rotation  # type: ignore[union-attr]
-    path = onbase.GravityPath(f.scene.physics.gravity_slide, q0,
-                              f.base_pose.rotation)  # type: ignore[union-attr]
     axis = _axis(mate)
+    gravity = f.scene.physics.gravity_slide
+    if not onbase.normal_load(mate.kind, mate.base_dirs, axis, _to_base(f, gravity))[1]:
+        return None  # pressed onto the plane at the frame's end: the common case, no path
+    q0 = (f.base_prev or f.base_pose).rotation  # type: ignore[union-attr]
+    path = onbase.GravityPath(gravity, q0, f.base_pose.rotation)  # type: ignore[union-attr]
 
     def lifted(tau: float) -> bool:
         return onbase.normal_load(mate.kind, mate.base_dirs, axis, path.at(tau))[1]
-    if not lifted(1.0):
-        return None
     lo, hi = 0.0, 1.0
     if lifted(0.0):
         return 0.0
