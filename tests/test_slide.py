@@ -94,13 +94,19 @@ def test_friction_never_reverses_motion_uphill():
 
 
 def test_base_turned_upside_down_drops_the_part():
-    scene = plate_scene()
-    state = on_base(scene, tilt_x(0.0), sp.Pose((0.0, 0.0, 0.04)))
-    record = list(run(scene, state, 3, left=lambda n: tilt_x(180.0)))
-    first_events = record[0][2]
-    assert [(e.from_mode, e.to_mode, e.cause) for e in first_events] == \
-        [("ONBASESTATIC", "INSPACE", "gravity_lifts_off")]
-    assert record[-1][1].parts[0].mode is Mode.INSPACE
+    """Turned over in one frame: as the plane passes vertical the normal load vanishes, so
+    static friction gives way just before gravity pulls the part off, both within the
+    frame (``slide_off: frame_end``, before 2026-11-22: lifted from rest at the frame's end)."""
+    for physics, expected in (
+            ({}, [("ONBASESTATIC", "ONBASESLIDE", "static_friction_exceeded"),
+                  ("ONBASESLIDE", "INSPACE", "gravity_lifts_off")]),
+            ({"slide_off": "frame_end"}, [("ONBASESTATIC", "INSPACE", "gravity_lifts_off")])):
+        scene = plate_scene(physics)
+        state = on_base(scene, tilt_x(0.0), sp.Pose((0.0, 0.0, 0.04)))
+        record = list(run(scene, state, 3, left=lambda n: tilt_x(180.0)))
+        first_events = record[0][2]
+        assert [(e.from_mode, e.to_mode, e.cause) for e in first_events] == expected
+        assert record[-1][1].parts[0].mode is Mode.INSPACE
 
 
 def test_paper_slide_model_is_selectable():
@@ -427,8 +433,8 @@ def test_off_a_turning_moving_base_with_the_bases_velocity_at_that_instant():
 def test_a_sliding_part_lifts_off_when_the_plane_turns_past_vertical():
     """The plate turns about its long axis at 2.2 degrees a frame (132 deg/s) while the
     cube slides on it: when the plane passes vertical (mid-frame 41) gravity pulls the cube
-    off, and it flies from that instant. After 1 s it is where the same motion tracked at
-    3840 Hz has it. Before, a sliding part (unlike a resting one) was never lifted off: it
+    off, and it flies from that instant. After 1 s it is within 1e-8 m of the same motion
+    tracked at 3840 Hz. Before, a sliding part (unlike a resting one) was never lifted off: it
     hung under the plate until it slid off an edge (``slide_off: frame_end`` keeps that)."""
     rate_deg = 2.2 * 60.0
 
@@ -449,9 +455,40 @@ def test_a_sliding_part_lifts_off_when_the_plane_turns_past_vertical():
     assert lifted_at == 41 and part.mode is Mode.INSPACE
     reference, _, _ = final(3840, {"slide_max_step_s": 1 / 1920})
     cm = part.pose.apply(scene.parts[0].center_of_mass)
-    assert math.dist(cm, reference.pose.apply(scene.parts[0].center_of_mass)) < 1e-6
+    assert math.dist(cm, reference.pose.apply(scene.parts[0].center_of_mass)) < 1e-8
     glued, never, _ = final(60, {"slide_off": "frame_end"})
     assert never is None and math.dist(glued.pose.apply(scene.parts[0].center_of_mass), cm) > 0.1
+
+
+def test_a_resting_part_lifts_off_at_the_instant_too():
+    """The same plate turned past vertical with the cube at rest on it (f_s 1000: held until
+    the normal load all but vanishes): static friction gives way at 89.94 degrees and the
+    cube slips for 0.45 ms before gravity pulls it off at 90, both within frame 41, and the
+    slide up to the lift is integrated, not interpolated: after 1 s it is within 1e-8 m of
+    the motion tracked at 3840 Hz. Lifted from rest at the frame's end, it missed the slip
+    (4.5 mm/s) and started late: 2.6 mm off."""
+    rate_deg = 2.2 * 60.0
+
+    def base(t):
+        return sp.Pose((0.0, 0.0, 1.0),
+                       sp.quat_axis_angle((1.0, 0.0, 0.0), math.radians(rate_deg * t)))
+
+    def final(rate, physics):
+        scene = plate_scene(physics, size=(0.6, 8.0, 0.04), friction=(1000.0, 0.2))
+        lifted_at = None
+        for n, state, events in _tracked(scene, base, sp.Pose((0.0, 0.0, 0.04),
+                                                              sp.IDENTITY_QUAT),
+                                         (0.0, 0.0), rate, 1.0):
+            if any(e.cause == "gravity_lifts_off" for e in events):
+                lifted_at = n
+        part = state.parts[0]
+        return part.pose.apply(scene.parts[0].center_of_mass), lifted_at
+    cm, lifted_at = final(60, {})
+    assert lifted_at == 41
+    reference, _ = final(3840, {"slide_max_step_s": 1 / 1920})
+    assert math.dist(cm, reference) < 1e-8
+    late, late_at = final(60, {"slide_off": "frame_end"})
+    assert late_at == 41 and math.dist(late, reference) > 1e-3
 
 
 def _tracked(scene, base, rel, slide_rate, rate, seconds):

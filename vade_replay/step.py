@@ -661,16 +661,30 @@ def _check_resting_on_base(f: _Frame) -> None:
         if part.mode is not Mode.ONBASESTATIC or f.base_pose is None:
             continue
         body = f.scene.parts[index]
+        located = f.scene.physics.slide_off == "located" and f.dt_s > 0.0
         if isinstance(part.motion, Resting):
             # No constraint: it stays while gravity presses it onto the base.
             rest = part.motion
-            if sp.dot(_to_base(f, f.scene.physics.gravity), rest.up) > 0.0:
-                _leave(f, index, Cause.LIFTED_OFF, rest.base_from_part, sp.ZERO3, sp.ZERO3)
+            up = rest.up
+
+            def pulls_off(g: sp.Vec3) -> bool:
+                return sp.dot(g, up) > 0.0
+            if pulls_off(_to_base(f, f.scene.physics.gravity)):
+                at = _lift_fraction(f, f.scene.physics.gravity, pulls_off) if located else 1.0
+                _leave(f, index, Cause.LIFTED_OFF, rest.base_from_part, sp.ZERO3, sp.ZERO3,
+                       at=at)
+                if at < 1.0:
+                    _fly(f, index)
             continue
         m: OnBase = part.motion  # type: ignore[assignment]
         mate = body.assembly.mates[m.mate]  # type: ignore[union-attr]
         lifted, slides, turns = _drive(f, body, mate, m)
-        if lifted:
+        if lifted and located and mate.kind != "axis":
+            # As gravity turns to pull it off the plane the normal load goes to zero, so
+            # static friction gives way just before: it slides, and the slide finds both
+            # instants within this frame (_slide_and_turn, which runs next).
+            f.change_mode(index, replace(part, mode=Mode.ONBASESLIDE), Cause.FRICTION_BROKEN)
+        elif lifted:
             rel = cn.relative_pose(mate, m.base_from_snap, m.slide, m.angle)
             _leave(f, index, Cause.LIFTED_OFF, rel, sp.ZERO3, sp.ZERO3)
         elif slides or turns:
@@ -806,11 +820,25 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
     if physics.slide_off == "located" and mate.kind != "axis" and dt > 0.0:
         lift = _lift_off_fraction(f, mate)
         if lift is not None:
-            # Gravity turned to pull it off the plane it slides on: it separates then.
-            xl, vl, al, wl = _path_at(m, x1, v1, a1, w1, lift, dt)
-            v_rel, w_rel = _relative_rates(body, mate, m, vl, al, wl)
-            _leave(f, index, Cause.LIFTED_OFF, cn.relative_pose(mate, m.base_from_snap, xl, al),
-                   v_rel, w_rel, at=lift)
+            # Gravity turned to pull it off the plane it slides on: it separates then. Its
+            # state then is the slide's own over the frame up to that instant (the base's
+            # turn up to it is a slerp too), not an interpolation of the frame's ends, which
+            # misses a slip that started within the frame (as one always does just before a
+            # lift: the normal load goes to zero).
+            xl, vl = m.slide, m.slide_rate
+            if lift > 0.0:
+                q0 = (f.base_prev or f.base_pose).rotation  # type: ignore[union-attr]
+                q_lift = sp.slerp(q0, f.base_pose.rotation, lift)  # type: ignore[union-attr]
+                xl, vl = onbase.slide(
+                    mate.kind, mate.base_dirs, _axis(mate), mate.slide_dirs,
+                    onbase.GravityPath(physics.gravity_slide, q0, q_lift), m.slide, m.slide_rate,
+                    lift * dt, onbase.substeps(lift * dt, physics.slide_step_s),
+                    f_static=mate.static_friction, f_dynamic=mate.dynamic_friction,
+                    blocked=m.blocked_slide, integrator=physics.slide_integrator,
+                    located=physics.slide_onset == "located")
+            v_rel, w_rel = _relative_rates(body, mate, m, vl, m.angle, m.angle_rate)
+            _leave(f, index, Cause.LIFTED_OFF,
+                   cn.relative_pose(mate, m.base_from_snap, xl, m.angle), v_rel, w_rel, at=lift)
             _fly(f, index)
             return
     blocked = None
@@ -1056,25 +1084,30 @@ def _leaving_fraction(f: _Frame, body: Body, mate: cn.Mate, m: OnBase,
 
 def _lift_off_fraction(f: _Frame, mate: cn.Mate) -> float | None:
     """When, within the frame, gravity (base axes, along the frame's turn of the base) first
-    pulls a part off the plane(s) it slides on, or None if it does not by the frame's end;
-    bisected on the gravity path (no geometry is asked)."""
+    pulls a part off the plane(s) of its mate, or None if it does not by the frame's end."""
     axis = _axis(mate)
     gravity = f.scene.physics.gravity_slide
-    if not onbase.normal_load(mate.kind, mate.base_dirs, axis, _to_base(f, gravity))[1]:
+
+    def lifted(g: sp.Vec3) -> bool:
+        return onbase.normal_load(mate.kind, mate.base_dirs, axis, g)[1]
+    if not lifted(_to_base(f, gravity)):
         return None  # pressed onto the plane at the frame's end: the common case, no path
+    return _lift_fraction(f, gravity, lifted)
+
+
+def _lift_fraction(f: _Frame, gravity: sp.Vec3, lifted) -> float:
+    """The first fraction of the frame at which ``lifted(gravity in base axes)`` holds, given
+    that it holds at the frame's end: bisected on the frame's gravity path (no geometry)."""
     q0 = (f.base_prev or f.base_pose).rotation  # type: ignore[union-attr]
     path = onbase.GravityPath(gravity, q0, f.base_pose.rotation)  # type: ignore[union-attr]
-
-    def lifted(tau: float) -> bool:
-        return onbase.normal_load(mate.kind, mate.base_dirs, axis, path.at(tau))[1]
     lo, hi = 0.0, 1.0
-    if lifted(0.0):
+    if lifted(path.at(0.0)):
         return 0.0
     for _ in range(_LEAVING_ITERATIONS):
         if (hi - lo) * f.dt_s < 1e-10:
             break
         mid = 0.5 * (lo + hi)
-        if lifted(mid):
+        if lifted(path.at(mid)):
             hi = mid
         else:
             lo = mid
