@@ -436,28 +436,12 @@ def test_a_sliding_part_lifts_off_when_the_plane_turns_past_vertical():
     off, and it flies from that instant. After 1 s it is within 1e-8 m of the same motion
     tracked at 3840 Hz. Before, a sliding part (unlike a resting one) was never lifted off: it
     hung under the plate until it slid off an edge (``slide_off: frame_end`` keeps that)."""
-    rate_deg = 2.2 * 60.0
-
-    def base(t):
-        return sp.Pose((0.0, 0.0, 1.0),
-                       sp.quat_axis_angle((1.0, 0.0, 0.0), math.radians(rate_deg * t)))
-
-    def final(rate, physics):
-        scene = plate_scene(physics, size=(0.6, 8.0, 0.04))
-        lifted_at = None
-        for n, state, events in _tracked(scene, base, sp.Pose((0.0, 0.0, 0.04),
-                                                              sp.IDENTITY_QUAT),
-                                         (0.2, 0.0), rate, 1.0):
-            if any(e.cause == "gravity_lifts_off" for e in events):
-                lifted_at = n
-        return state.parts[0], lifted_at, scene
-    part, lifted_at, scene = final(60, {})
+    part, lifted_at, cm = _turned_over(60, {}, (0.3, 0.2), (0.2, 0.0))
     assert lifted_at == 41 and part.mode is Mode.INSPACE
-    reference, _, _ = final(3840, {"slide_max_step_s": 1 / 1920})
-    cm = part.pose.apply(scene.parts[0].center_of_mass)
-    assert math.dist(cm, reference.pose.apply(scene.parts[0].center_of_mass)) < 1e-8
-    glued, never, _ = final(60, {"slide_off": "frame_end"})
-    assert never is None and math.dist(glued.pose.apply(scene.parts[0].center_of_mass), cm) > 0.1
+    _, _, reference = _turned_over(3840, {"slide_max_step_s": 1 / 1920}, (0.3, 0.2), (0.2, 0.0))
+    assert math.dist(cm, reference) < 1e-8
+    _, never, glued = _turned_over(60, {"slide_off": "frame_end"}, (0.3, 0.2), (0.2, 0.0))
+    assert never is None and math.dist(glued, cm) > 0.1
 
 
 def test_a_resting_part_lifts_off_at_the_instant_too():
@@ -467,28 +451,29 @@ def test_a_resting_part_lifts_off_at_the_instant_too():
     slide up to the lift is integrated, not interpolated: after 1 s it is within 1e-8 m of
     the motion tracked at 3840 Hz. Lifted from rest at the frame's end, it missed the slip
     (4.5 mm/s) and started late: 2.6 mm off."""
-    rate_deg = 2.2 * 60.0
+    _, lifted_at, cm = _turned_over(60, {}, (1000.0, 0.2), (0.0, 0.0))
+    assert lifted_at == 41
+    _, _, reference = _turned_over(3840, {"slide_max_step_s": 1 / 1920}, (1000.0, 0.2),
+                                   (0.0, 0.0))
+    assert math.dist(cm, reference) < 1e-8
+    _, late_at, late = _turned_over(60, {"slide_off": "frame_end"}, (1000.0, 0.2), (0.0, 0.0))
+    assert late_at == 41 and math.dist(late, reference) > 1e-3
 
+
+def _turned_over(rate, physics, friction, slide_rate):
+    """The cube on an 8 m plate turned about its long axis at 132 deg/s, tracked at ``rate``
+    Hz for 1 s: its final state, the frame gravity lifted it off in, its final CM."""
     def base(t):
         return sp.Pose((0.0, 0.0, 1.0),
-                       sp.quat_axis_angle((1.0, 0.0, 0.0), math.radians(rate_deg * t)))
-
-    def final(rate, physics):
-        scene = plate_scene(physics, size=(0.6, 8.0, 0.04), friction=(1000.0, 0.2))
-        lifted_at = None
-        for n, state, events in _tracked(scene, base, sp.Pose((0.0, 0.0, 0.04),
-                                                              sp.IDENTITY_QUAT),
-                                         (0.0, 0.0), rate, 1.0):
-            if any(e.cause == "gravity_lifts_off" for e in events):
-                lifted_at = n
-        part = state.parts[0]
-        return part.pose.apply(scene.parts[0].center_of_mass), lifted_at
-    cm, lifted_at = final(60, {})
-    assert lifted_at == 41
-    reference, _ = final(3840, {"slide_max_step_s": 1 / 1920})
-    assert math.dist(cm, reference) < 1e-8
-    late, late_at = final(60, {"slide_off": "frame_end"})
-    assert late_at == 41 and math.dist(late, reference) > 1e-3
+                       sp.quat_axis_angle((1.0, 0.0, 0.0), math.radians(132.0 * t)))
+    scene = plate_scene(physics, size=(0.6, 8.0, 0.04), friction=friction)
+    lifted_at = None
+    for n, state, events in _tracked(scene, base, sp.Pose((0.0, 0.0, 0.04), sp.IDENTITY_QUAT),
+                                     slide_rate, rate, 1.0):
+        if any(e.cause == "gravity_lifts_off" for e in events):
+            lifted_at = n
+    part = state.parts[0]
+    return part, lifted_at, part.pose.apply(scene.parts[0].center_of_mass)
 
 
 def _tracked(scene, base, rel, slide_rate, rate, seconds):
