@@ -817,52 +817,40 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
                                      motion=replace(m, slide_rate=tuple(0.0 for _ in v1),
                                                     angle_rate=0.0)), Cause.NUMERICAL_FAULT)
         return
-    if physics.slide_off == "located" and mate.kind != "axis" and dt > 0.0:
-        lift = _lift_off_fraction(f, mate)
-        if lift is not None:
-            # Gravity turned to pull it off the plane it slides on: it separates then. Its
-            # state then is the slide's own over the frame up to that instant (the base's
-            # turn up to it is a slerp too), not an interpolation of the frame's ends, which
-            # misses a slip that started within the frame (as one always does just before a
-            # lift: the normal load goes to zero).
-            xl, vl = m.slide, m.slide_rate
-            if lift > 0.0:
-                q0 = (f.base_prev or f.base_pose).rotation  # type: ignore[union-attr]
-                q_lift = sp.slerp(q0, f.base_pose.rotation, lift)  # type: ignore[union-attr]
-                xl, vl = onbase.slide(
-                    mate.kind, mate.base_dirs, _axis(mate), mate.slide_dirs,
-                    onbase.GravityPath(physics.gravity_slide, q0, q_lift), m.slide, m.slide_rate,
-                    lift * dt, onbase.substeps(lift * dt, physics.slide_step_s),
-                    f_static=mate.static_friction, f_dynamic=mate.dynamic_friction,
-                    blocked=m.blocked_slide, integrator=physics.slide_integrator,
-                    located=physics.slide_onset == "located")
-            v_rel, w_rel = _relative_rates(body, mate, m, vl, m.angle, m.angle_rate)
-            _leave(f, index, Cause.LIFTED_OFF,
-                   cn.relative_pose(mate, m.base_from_snap, xl, m.angle), v_rel, w_rel, at=lift)
-            _fly(f, index)
-            return
+    # When gravity turns to pull it off the plane (located), it leaves then, unless the
+    # base blocks it or it slides off an edge first in the frame.
+    lift = _lift_off_fraction(f, mate) \
+        if physics.slide_off == "located" and mate.kind != "axis" and dt > 0.0 else None
     blocked = None
     if x1 != m.slide or a1 != m.angle:
         m, blocked = _sweep(f, body, mate, m, x1, a1)
         if blocked is not None:
             lam, blame_slide, blame_turn = blocked
-            x1 = tuple(x0 + lam * (xe - x0) for x0, xe in zip(m.slide, x1))
-            a1 = m.angle + lam * (a1 - m.angle)
+            if lift is not None and lift < lam:
+                blocked = None  # lifted off before it reached the obstacle
+            else:
+                lift = None  # stopped first; a lift is found again next frame, at its start
+                x1 = tuple(x0 + lam * (xe - x0) for x0, xe in zip(m.slide, x1))
+                a1 = m.angle + lam * (a1 - m.angle)
     rel = cn.relative_pose(mate, m.base_from_snap, x1, a1)
     if not _still_on_base(f, body, mate, m, rel, x1):
         lam = _LEAVE_AT_END if blocked is not None or physics.slide_off != "located" \
             else _leaving_fraction(f, body, mate, m, x1, v1, a1, w1)
-        if lam >= 1.0:
-            v_rel, w_rel = _relative_rates(body, mate, m, v1, a1, w1)
-            _leave(f, index, Cause.SLID_OFF, rel, v_rel, w_rel)
+        if lift is None or lam <= lift:
+            if lam >= 1.0:
+                v_rel, w_rel = _relative_rates(body, mate, m, v1, a1, w1)
+                _leave(f, index, Cause.SLID_OFF, rel, v_rel, w_rel)
+                return
+            # Off the base part-way through the frame: free flight from that instant on,
+            # the rest of the frame flown (contact search included) as any flight is.
+            xl, vl, al, wl = _path_at(m, x1, v1, a1, w1, lam, f.dt_s)
+            v_rel, w_rel = _relative_rates(body, mate, m, vl, al, wl)
+            _leave(f, index, Cause.SLID_OFF, cn.relative_pose(mate, m.base_from_snap, xl, al),
+                   v_rel, w_rel, at=lam)
+            _fly(f, index)
             return
-        # Off the base part-way through the frame: free flight from that instant on, the
-        # rest of the frame flown (contact search included) as any flight is.
-        xl, vl, al, wl = _path_at(m, x1, v1, a1, w1, lam, f.dt_s)
-        v_rel, w_rel = _relative_rates(body, mate, m, vl, al, wl)
-        _leave(f, index, Cause.SLID_OFF, cn.relative_pose(mate, m.base_from_snap, xl, al),
-               v_rel, w_rel, at=lam)
-        _fly(f, index)
+    if lift is not None:
+        _lift_off(f, index, body, mate, m, lift)
         return
     new = m.moved(x1, v1, a1, w1)
     if blocked is not None:
@@ -1080,6 +1068,33 @@ def _leaving_fraction(f: _Frame, body: Body, mate: cn.Mate, m: OnBase,
                 f_hi *= 0.5
             side = -1
     return hi
+
+
+def _lift_off(f: _Frame, index: int, body: Body, mate: cn.Mate, m: OnBase,
+              lift: float) -> None:
+    """Gravity turned to pull a sliding part off the plane: it separates at the fraction
+    ``lift`` of the frame. Its state then is the slide's own up to that instant (the base's
+    turn up to it is a slerp too), not an interpolation of the frame's ends, which misses a
+    slip that started within the frame (as one always does just before a lift: the normal
+    load goes to zero). Plane mates do not turn."""
+    physics = f.scene.physics
+    xl, vl = m.slide, m.slide_rate
+    if lift > 0.0:
+        q0 = (f.base_prev or f.base_pose).rotation  # type: ignore[union-attr]
+        q_lift = sp.slerp(q0, f.base_pose.rotation, lift)  # type: ignore[union-attr]
+        steps = onbase.substeps(lift * f.dt_s, physics.slide_step_s)
+        f.collision.stats["closed_form_evals" if physics.slide_integrator in (
+            "analytic", "analytic4") else "integrator_steps"] += steps
+        xl, vl = onbase.slide(
+            mate.kind, mate.base_dirs, _axis(mate), mate.slide_dirs,
+            onbase.GravityPath(physics.gravity_slide, q0, q_lift), m.slide, m.slide_rate,
+            lift * f.dt_s, steps, f_static=mate.static_friction,
+            f_dynamic=mate.dynamic_friction, blocked=m.blocked_slide,
+            integrator=physics.slide_integrator, located=physics.slide_onset == "located")
+    v_rel, w_rel = _relative_rates(body, mate, m, vl, m.angle, m.angle_rate)
+    _leave(f, index, Cause.LIFTED_OFF, cn.relative_pose(mate, m.base_from_snap, xl, m.angle),
+           v_rel, w_rel, at=lift)
+    _fly(f, index)
 
 
 def _lift_off_fraction(f: _Frame, mate: cn.Mate) -> float | None:
