@@ -366,7 +366,9 @@ def test_friction_on_a_horizontal_plane_stops_a_part_in_a_straight_line(directio
     back, stops at v0^2 / (2 f_d g) (closed form, 1e-12 m + 1e-12 relative) within the
     frame the closed form stops in, and stays there bit for bit."""
     from _onbase import on_base, plate_scene
-    scene = plate_scene(size=(40.0, 40.0, 0.04), friction=(fd, fd))
+    # Half a side beyond the longest slide: s0^2 / (2 g (f_d cos - sin)) <= 20.5 m here
+    # (2 m/s, f_d 0.05, ratio 0.8); 40 m was too small for that corner (found in a full run).
+    scene = plate_scene(size=(60.0, 60.0, 0.04), friction=(fd, fd))
     v0 = (speed * math.cos(direction), speed * math.sin(direction))
     state = on_base(scene, tilt((1, 0, 0), 0.0), sp.Pose((0.0, 0.0, 0.04)),
                     mode=Mode.ONBASESLIDE, slide_rate=v0)
@@ -406,7 +408,9 @@ def test_friction_below_the_friction_angle_slows_and_stops_never_reverses(ratio,
     before it stops, in the closed form too.)"""
     from _onbase import on_base, plate_scene
     theta = math.atan(ratio * fd)
-    scene = plate_scene(size=(40.0, 40.0, 0.04), friction=(fd, fd))
+    # Half a side beyond the longest slide: s0^2 / (2 g (f_d cos - sin)) <= 20.5 m here
+    # (2 m/s, f_d 0.05, ratio 0.8); 40 m was too small for that corner (found in a full run).
+    scene = plate_scene(size=(60.0, 60.0, 0.04), friction=(fd, fd))
     v0 = (speed * math.cos(direction), speed * math.sin(direction))
     state = on_base(scene, tilt((1, 0, 0), -math.degrees(theta)), sp.Pose((0.0, 0.0, 0.04)),
                     mode=Mode.ONBASESLIDE, slide_rate=v0)
