@@ -517,7 +517,6 @@ def _turned_over(rate, physics, friction, slide_rate):
 def _tracked(scene, base, rel, slide_rate, rate, seconds):
     """The cube sliding from ``rel`` on the plate held at ``base(t)``, tracked at ``rate`` Hz:
     (frame, state, events) each frame."""
-    from vade_replay.collision import CollisionWorld
     from vade_replay.frames import DeviceSample, TrackerFrame
     from vade_replay.step import LEFT, RIGHT, step
     state = on_base(scene, base(0.0), rel, mode=Mode.ONBASESLIDE, slide_rate=slide_rate)
