@@ -51,3 +51,14 @@ def test_placement_time_and_refusals_reach_the_json():
     (stats,) = analysis["parts"].values()
     assert stats["placed_at_s"] is not None and stats["placed_at_s"] > 0
     assert "PLACED" in stats["time_in_state_s"]
+
+
+def test_every_statistic_of_a_part_is_reported():
+    # ``as_dict`` lists the fields by hand (the compiled class has no ``__dict__``): a field
+    # added to PartStats and not to it would silently drop out of every summary.
+    from dataclasses import fields
+
+    from vade_replay.analysis import PartStats
+    stats = PartStats(grabs=2, placed_at_s=1.5)
+    assert list(stats.as_dict()) == [f.name for f in fields(PartStats)]
+    assert stats.as_dict()["grabs"] == 2 and stats.as_dict()["placed_at_s"] == 1.5

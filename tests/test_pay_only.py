@@ -55,11 +55,14 @@ def test_resting_parts_cost_no_queries_and_no_integration():
 def test_reused_snapshots_equal_snapshots_made_afresh(monkeypatch):
     session = _moving_part(8)
     reused, _ = _run(session)
-    original = step_module.frame_record
-    monkeypatch.setattr("vade_replay.replay.frame_record",
-                        lambda *a, previous=None, **k: original(*a, **k))
+    monkeypatch.setattr(step_module, "_REUSE_SNAPSHOTS", False)
     fresh, _ = _run(session)
     assert _values(reused) == _values(fresh)
+
+    def shared(records):  # snapshots carried over from the frame before, as objects
+        return sum(a is b for r0, r1 in zip(records, records[1:])
+                   for a, b in zip(r0.parts, r1.parts))
+    assert shared(reused) > 0 and shared(fresh) == 0
 
 
 def test_a_resting_part_among_many_can_be_grabbed():

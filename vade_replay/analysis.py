@@ -26,6 +26,13 @@ class PartStats:
     blocked: int = 0
     placed_at_s: float | None = None
 
+    def as_dict(self) -> dict:
+        # Field by field: compiled (native.MODULES), the class has no ``__dict__``.
+        return {"time_in_state_s": self.time_in_state_s, "grabs": self.grabs,
+                "catches": self.catches, "releases": self.releases, "drops": self.drops,
+                "slid_off": self.slid_off, "lifted_off": self.lifted_off,
+                "blocked": self.blocked, "placed_at_s": self.placed_at_s}
+
 
 @dataclass
 class SessionAnalysis:
@@ -93,5 +100,5 @@ class SessionAnalysis:
             mode, since = self._mode.get(name, (None, 0))
             if mode is not None and self._last_ns is not None:
                 times[mode] = times.get(mode, 0.0) + (self._last_ns - since) * 1e-9
-            out[name] = {**stats.__dict__, "time_in_state_s": dict(sorted(times.items()))}
+            out[name] = {**stats.as_dict(), "time_in_state_s": dict(sorted(times.items()))}
         return {"parts": out, "refused_grabs": dict(sorted(self.refused_grabs.items()))}

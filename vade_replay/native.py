@@ -39,6 +39,7 @@ MODULES = (
     "vade_replay/frames.py",
     "vade_replay/scene.py",
     "vade_replay/collision.py",
+    "vade_replay/analysis.py",
 )
 PURE_ENV = "VADE_REPLAY_PURE"
 # Set by CI: a build that cannot compile fails instead of installing pure Python, and the

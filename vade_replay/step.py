@@ -1193,8 +1193,14 @@ def _still_on_base(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, rel: sp.Pose
 # --- snapshots ------------------------------------------------------------------------
 
 def snapshot(part: PartState) -> PartSnapshot:
-    return PartSnapshot(part.name, part.mode.value, part.pose.position, part.pose.rotation,
+    # ``_value_``, not ``.value``: the enum's ``value`` is a descriptor written in Python,
+    # two interpreted calls a snapshot even in the compiled build; ``_value_`` is the same
+    # string, read from the member's own attributes.
+    return PartSnapshot(part.name, part.mode._value_, part.pose.position, part.pose.rotation,
                         part.linear_velocity, part.angular_velocity)
+
+
+_INHAND_TEXT: str = Mode.INHAND.value
 
 
 def frame_record(scene: Scene, state: WorldState, inputs: TrackerFrame,
@@ -1209,7 +1215,7 @@ def frame_record(scene: Scene, state: WorldState, inputs: TrackerFrame,
     """
     base = None
     if scene.base is not None and state.base_pose is not None:
-        base = PartSnapshot(scene.base.name, Mode.INHAND.value, state.base_pose.position,
+        base = PartSnapshot(scene.base.name, _INHAND_TEXT, state.base_pose.position,
                             state.base_pose.rotation, sp.ZERO3, sp.ZERO3)
     prev_awake = previous[0].awake_parts() if previous is not None else None
     awake = state.awake_parts()
@@ -1222,3 +1228,29 @@ def frame_record(scene: Scene, state: WorldState, inputs: TrackerFrame,
         if parts[index] is not prev_parts[index]:
             snaps[index] = snapshot(parts[index])
     return FrameRecord(inputs, base, tuple(snaps), events)
+
+
+_REUSE_SNAPSHOTS = True  # frame_record's reuse of unchanged snapshots (off in a test)
+
+
+class Stepper:
+    """The fold of ``step`` over a run's tracker frames, one frame a call: what each frame
+    derived (``replay.simulate``, ``replay.replay_frames``). A class of this compiled
+    module, so that the fold costs no interpreted call a frame."""
+
+    def __init__(self, scene: Scene, collision: CollisionWorld) -> None:
+        self.scene = scene
+        self.collision = collision
+        self.state: WorldState | None = None
+        self.previous: tuple[WorldState, FrameRecord] | None = None
+
+    def __call__(self, inputs: TrackerFrame) -> FrameRecord:
+        state = self.state
+        if state is None:
+            state = initial_state(self.scene, time_ns=inputs.time_ns)
+        state, events = step(self.scene, self.collision, state, inputs)
+        record = frame_record(self.scene, state, inputs, events,
+                              previous=self.previous if _REUSE_SNAPSHOTS else None)
+        self.state = state
+        self.previous = (state, record)
+        return record
