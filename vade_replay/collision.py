@@ -25,6 +25,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import Enum
+from typing import Final
 
 import fcl
 import numpy as np
@@ -42,6 +43,14 @@ class CheckMode(str, Enum):
     SKIP_COAXIAL = "SKIP_COAXIAL"
     SKIP_CYLINDER = "SKIP_COAXIAL"  # the paper's other name for the same check
     NOCARE_COPLANAR = "NOCARE_COPLANAR"
+
+
+# Read once: compiled, ``CheckMode.X`` is a lookup through ``EnumType.__getattr__``
+# (~700 instructions); a Final name is a C static (``step`` does the same for the modes).
+KEEP_COPLANAR: Final = CheckMode.KEEP_COPLANAR
+SKIP_COPLANAR: Final = CheckMode.SKIP_COPLANAR
+SKIP_COAXIAL: Final = CheckMode.SKIP_COAXIAL
+NOCARE_COPLANAR: Final = CheckMode.NOCARE_COPLANAR
 
 
 def _bvh_of(vertices: np.ndarray, faces: np.ndarray) -> fcl.BVHModel | None:
@@ -168,13 +177,13 @@ class CollisionWorld:
     def _models(self, part: str, geometry: _MateGeometry, mode: CheckMode):
         """The part's model and the base's object that ``mode`` compares, and the triangles
         of each."""
-        if mode is CheckMode.KEEP_COPLANAR:
+        if mode is KEEP_COPLANAR:
             return (geometry.part_feature, geometry.base_feature, geometry.part_feature_faces,
                     geometry.base_feature_faces)
         body = self._bodies[part]
-        base_faces = self._base_faces if mode is CheckMode.NOCARE_COPLANAR \
+        base_faces = self._base_faces if mode is NOCARE_COPLANAR \
             else geometry.base_rest_faces
-        other = geometry.base_whole if mode is CheckMode.NOCARE_COPLANAR else geometry.base_rest
+        other = geometry.base_whole if mode is NOCARE_COPLANAR else geometry.base_rest
         return self._model(part), other, body.faces, base_faces
 
     def base_distance(self, part: str, mate: int, base_from_part: sp.Pose,

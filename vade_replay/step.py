@@ -10,11 +10,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from typing import cast
+from typing import Final, cast
 
 from . import constraints as cn
 from . import spatial as sp
-from .collision import CheckMode, CollisionWorld
+from .collision import (KEEP_COPLANAR, SKIP_COAXIAL, SKIP_COPLANAR, CheckMode,
+                        CollisionWorld)
 from .constraints import Assembly
 from .dynamics import free, onbase, velocity
 from .events import ContactMade, Event, GrabRefused, ModeChanged, PartGrabbed, PartReleased
@@ -24,7 +25,16 @@ from .scene import Body, Scene
 from .state import Held, OnBase, PartState, Resting, WorldState
 
 RIGHT, LEFT = "right_hand", "left_hand"
-_GRABBABLE = (Mode.STATIC, Mode.INSPACE, Mode.ONBASESLIDE, Mode.ONBASESTATIC, Mode.PLACED)
+# The modes, read once. Compiled, ``Mode.STATIC`` is a lookup on the enum class through
+# ``EnumType.__getattr__`` (~700 instructions, dozens a frame); a Final name of this
+# module is a C static.
+INHAND: Final = Mode.INHAND
+ONBASESLIDE: Final = Mode.ONBASESLIDE
+ONBASESTATIC: Final = Mode.ONBASESTATIC
+INSPACE: Final = Mode.INSPACE
+STATIC: Final = Mode.STATIC
+PLACED: Final = Mode.PLACED
+_GRABBABLE = (STATIC, INSPACE, ONBASESLIDE, ONBASESTATIC, PLACED)
 _CA_MAX_ITERATIONS = 10_000
 _MIN_SUPPORT_COS = 0.1
 
@@ -92,7 +102,7 @@ def initial_state(scene: Scene, *, time_ns: int = 0) -> WorldState:
 def _awake(parts) -> tuple[int, ...]:
     """Indices of the parts a frame has to look at: all but those at rest on the table
     (STATIC), which nothing but a grab moves; the grab stage looks at every part."""
-    return tuple(i for i, part in enumerate(parts) if part.mode is not Mode.STATIC)
+    return tuple(i for i, part in enumerate(parts) if part.mode is not STATIC)
 
 
 def step(scene: Scene, collision: CollisionWorld, state: WorldState,
@@ -144,7 +154,7 @@ def _follow_hands(f: _Frame) -> None:
     keep = max(physics.release_window, 2)
     for index in f.awake:
         part = f.parts[index]
-        if part.mode is not Mode.INHAND:
+        if part.mode is not INHAND:
             continue
         held: Held = part.motion  # type: ignore[assignment]
         hand = f.hands.get(held.hand)
@@ -161,7 +171,7 @@ def _follow_hands(f: _Frame) -> None:
 
 def _move_free_parts(f: _Frame) -> None:
     for index in f.awake:
-        if f.parts[index].mode is Mode.INSPACE:
+        if f.parts[index].mode is INSPACE:
             _fly(f, index)
 
 
@@ -172,7 +182,7 @@ def _releases(f: _Frame, state: WorldState) -> None:
             continue
         for index in f.awake:
             part = f.parts[index]
-            if part.mode is Mode.INHAND and cast(Held, part.motion).hand == hand:
+            if part.mode is INHAND and cast(Held, part.motion).hand == hand:
                 _release(f, index, hand)
 
 
@@ -228,10 +238,10 @@ def _grab(f: _Frame, hand: str) -> None:
         f.events.append(GrabRefused(frame, name, "too_heavy_for_one_hand", hand))
         return
     part = f.parts[index]
-    cause = Cause.CAUGHT if part.mode is Mode.INSPACE else Cause.GRABBED
+    cause = Cause.CAUGHT if part.mode is INSPACE else Cause.GRABBED
     cm = part.pose.apply(body.center_of_mass)
     held = Held(hand, hand_pose.inverse().compose(part.pose), ((f.t_ns, cm, part.pose.rotation),))
-    f.change_mode(index, PartState(name, Mode.INHAND, part.pose, sp.ZERO3, sp.ZERO3, held), cause)
+    f.change_mode(index, PartState(name, INHAND, part.pose, sp.ZERO3, sp.ZERO3, held), cause)
     f.events.append(PartGrabbed(frame, name, cause.value, hand))
 
 
@@ -263,7 +273,7 @@ def _release(f: _Frame, index: int, hand: str) -> None:
                                 world_from_part=part.pose,
                                 part_from_principal=body.part_from_principal,
                                 principal_moments=body.principal_moments, base_clear=False)
-            f.change_mode(index, PartState(part.name, Mode.INSPACE, part.pose, v, w, flight),
+            f.change_mode(index, PartState(part.name, INSPACE, part.pose, v, w, flight),
                           Cause.RELEASED)
             return
     near = f.collision.environment_near(cm, body.radius_about_cm + physics.contact_tolerance)
@@ -272,14 +282,14 @@ def _release(f: _Frame, index: int, hand: str) -> None:
         if d <= physics.contact_tolerance:
             f.events.append(PartReleased(frame, part.name, Cause.RELEASED_ON_TABLE.value, hand,
                                          v, w))
-            f.change_mode(index, PartState(part.name, Mode.STATIC, part.pose),
+            f.change_mode(index, PartState(part.name, STATIC, part.pose),
                           Cause.RELEASED_ON_TABLE)
             return
     f.events.append(PartReleased(frame, part.name, Cause.RELEASED.value, hand, v, w))
     flight = free.start(t_ns=f.t_ns, cm=cm, velocity=v, omega_world=w, world_from_part=part.pose,
                         part_from_principal=body.part_from_principal,
                         principal_moments=body.principal_moments)
-    f.change_mode(index, PartState(part.name, Mode.INSPACE, part.pose, v, w, flight),
+    f.change_mode(index, PartState(part.name, INSPACE, part.pose, v, w, flight),
                   Cause.RELEASED)
 
 
@@ -323,7 +333,7 @@ def _fly(f: _Frame, index: int) -> None:
         return
     flight, cm_b, v_b, pose_b = _flight_pose(f, body, start, t_b)
     if not (_finite(pose_b.position) and _finite(pose_b.rotation) and _finite(v_b)):
-        f.change_mode(index, PartState(part.name, Mode.STATIC, part.pose), Cause.NUMERICAL_FAULT)
+        f.change_mode(index, PartState(part.name, STATIC, part.pose), Cause.NUMERICAL_FAULT)
         return
     w_b = free.omega_world(flight, model=physics.free_rotation, moments=body.principal_moments)
     moved = part.moved(pose_b, v_b, w_b, flight)
@@ -372,11 +382,11 @@ def _fly(f: _Frame, index: int) -> None:
         flight = free.start(t_ns=t_c, cm=cm_c, velocity=v_c, omega_world=w_c,
                             world_from_part=pose_c, part_from_principal=body.part_from_principal,
                             principal_moments=body.principal_moments, base_clear=False)
-        f.parts[index] = PartState(part.name, Mode.INSPACE, pose_c, v_c, w_c, flight)
+        f.parts[index] = PartState(part.name, INSPACE, pose_c, v_c, w_c, flight)
         return
     f.events.append(ContactMade(f.inputs.frame, part.name, Cause.HIT_ENVIRONMENT.value,
                                 f.collision.environment_name(other), t_c))
-    f.change_mode(index, PartState(part.name, Mode.STATIC, pose_c), Cause.HIT_ENVIRONMENT)
+    f.change_mode(index, PartState(part.name, STATIC, pose_c), Cause.HIT_ENVIRONMENT)
 
 
 def _support(f: _Frame, normal: sp.Vec3 | None) -> sp.Vec3 | None:
@@ -407,7 +417,7 @@ def _rest_on_base(f: _Frame, index: int, base_from_part: sp.Pose, up: sp.Vec3,
     with it until the base turns so that gravity pulls the part off that face."""
     part = f.parts[index]
     pose = f.base_pose.compose(base_from_part)  # type: ignore[union-attr]
-    f.change_mode(index, PartState(part.name, Mode.ONBASESTATIC, pose, sp.ZERO3, sp.ZERO3,
+    f.change_mode(index, PartState(part.name, ONBASESTATIC, pose, sp.ZERO3, sp.ZERO3,
                                    Resting(base_from_part, up)), cause)
 
 
@@ -582,7 +592,7 @@ def _release_on_base(f: _Frame, index: int, hand: str) -> bool:
         if lifted:
             continue  # gravity pulls it off this plane: not a support
         # The snap is an inelastic contact: the part starts at rest relative to the base.
-        mode = Mode.ONBASESLIDE if (slides or turns) else Mode.ONBASESTATIC
+        mode = ONBASESLIDE if (slides or turns) else ONBASESTATIC
         pose = f.base_pose.compose(snapped)  # type: ignore[union-attr]
         f.events.append(PartReleased(f.inputs.frame, part.name, Cause.RELEASED_ON_BASE.value,
                                      hand, v, w))
@@ -599,7 +609,7 @@ def _place(f: _Frame, index: int, cause: Cause, *, hand: str | None = None) -> N
         f.events.append(PartReleased(f.inputs.frame, part.name, cause.value, hand,
                                      part.linear_velocity, part.angular_velocity))
     pose = f.base_pose.compose(cast(sp.Pose, final))  # type: ignore[union-attr]
-    f.change_mode(index, PartState(part.name, Mode.PLACED, pose), cause)
+    f.change_mode(index, PartState(part.name, PLACED, pose), cause)
 
 
 def _base_motion(f: _Frame, point_base: sp.Vec3) -> tuple[sp.Vec3, sp.Vec3]:
@@ -651,14 +661,14 @@ def _leave(f: _Frame, index: int, cause: Cause, rel: sp.Pose, v_rel: sp.Vec3,
                         omega_world=w, world_from_part=pose,
                         part_from_principal=body.part_from_principal,
                         principal_moments=body.principal_moments, base_clear=False)
-    f.change_mode(index, PartState(part.name, Mode.INSPACE, pose, v, w, flight), cause)
+    f.change_mode(index, PartState(part.name, INSPACE, pose, v, w, flight), cause)
 
 
 def _check_resting_on_base(f: _Frame) -> None:
     """ONBASESTATIC: does gravity now pull it off, or overcome static friction?"""
     for index in f.awake:
         part = f.parts[index]
-        if part.mode is not Mode.ONBASESTATIC or f.base_pose is None:
+        if part.mode is not ONBASESTATIC or f.base_pose is None:
             continue
         body = f.scene.parts[index]
         located = f.scene.physics.slide_off == "located" and f.dt_s > 0.0
@@ -683,12 +693,12 @@ def _check_resting_on_base(f: _Frame) -> None:
             # As gravity turns to pull it off the plane the normal load goes to zero, so
             # static friction gives way just before: it slides, and the slide finds both
             # instants within this frame (_slide_and_turn, which runs next).
-            f.change_mode(index, replace(part, mode=Mode.ONBASESLIDE), Cause.FRICTION_BROKEN)
+            f.change_mode(index, replace(part, mode=ONBASESLIDE), Cause.FRICTION_BROKEN)
         elif lifted:
             rel = cn.relative_pose(mate, m.base_from_snap, m.slide, m.angle)
             _leave(f, index, Cause.LIFTED_OFF, rel, sp.ZERO3, sp.ZERO3)
         elif slides or turns:
-            f.change_mode(index, replace(part, mode=Mode.ONBASESLIDE), Cause.FRICTION_BROKEN)
+            f.change_mode(index, replace(part, mode=ONBASESLIDE), Cause.FRICTION_BROKEN)
 
 
 def _carry_with_base(f: _Frame) -> None:
@@ -697,7 +707,7 @@ def _carry_with_base(f: _Frame) -> None:
         return
     for index in f.awake:
         part = f.parts[index]
-        if part.mode is Mode.ONBASESTATIC:
+        if part.mode is ONBASESTATIC:
             m = part.motion
             if isinstance(m, Resting):
                 rel = m.base_from_part
@@ -706,7 +716,7 @@ def _carry_with_base(f: _Frame) -> None:
                 mate = f.scene.parts[index].assembly.mates[on.mate]  # type: ignore[union-attr]
                 rel = cn.relative_pose(mate, on.base_from_snap, on.slide, on.angle)
             f.parts[index] = part.moved(f.base_pose.compose(rel), sp.ZERO3, sp.ZERO3, m)
-        elif part.mode is Mode.PLACED:
+        elif part.mode is PLACED:
             final = f.scene.parts[index].assembly.final_pose  # type: ignore[union-attr]
             if final is not None:
                 f.parts[index] = part.moved(f.base_pose.compose(final), part.linear_velocity,
@@ -715,7 +725,7 @@ def _carry_with_base(f: _Frame) -> None:
 
 def _move_on_base(f: _Frame) -> None:
     for index in f.awake:
-        if f.parts[index].mode is Mode.ONBASESLIDE and f.base_pose is not None:
+        if f.parts[index].mode is ONBASESLIDE and f.base_pose is not None:
             _slide_and_turn(f, index)
 
 
@@ -812,7 +822,7 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
                     if torque <= mate.holding_torque:
                         w1 = 0.0
     if not (_finite(x1) and _finite(v1) and _finite((a1, w1))):
-        f.change_mode(index, replace(part, mode=Mode.ONBASESTATIC, linear_velocity=sp.ZERO3,
+        f.change_mode(index, replace(part, mode=ONBASESTATIC, linear_velocity=sp.ZERO3,
                                      angular_velocity=sp.ZERO3,
                                      motion=replace(m, slide_rate=tuple(0.0 for _ in v1),
                                                     angle_rate=0.0)), Cause.NUMERICAL_FAULT)
@@ -871,7 +881,7 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
         _, slides, turns = _drive(f, body, mate, new)
         if not (slides or turns):
             cause = Cause.BLOCKED if blocked is not None else Cause.FRICTION_HELD
-            f.change_mode(index, replace(moved, mode=Mode.ONBASESTATIC, linear_velocity=sp.ZERO3,
+            f.change_mode(index, replace(moved, mode=ONBASESTATIC, linear_velocity=sp.ZERO3,
                                          angular_velocity=sp.ZERO3), cause)
             return
     f.parts[index] = moved
@@ -913,9 +923,9 @@ def _sweep(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, x1: tuple[float, ...
         if reach < m.clearance - tol:
             return m, None
     if mate.kind == "axis":
-        mode, lift = CheckMode.SKIP_COAXIAL, sp.ZERO3
+        mode, lift = SKIP_COAXIAL, sp.ZERO3
     else:
-        mode = CheckMode.SKIP_COPLANAR
+        mode = SKIP_COPLANAR
         lift = sp.ZERO3
         for n in mate.base_dirs:
             lift = sp.add(lift, sp.scale(n, 2.0 * tol))
@@ -1160,9 +1170,9 @@ def _off_margin(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, rel: sp.Pose,
             return tol - overlap
         if overlap < -2.0 * tol:
             return -overlap - tol
-        return f.collision.base_distance(body.name, m.mate, rel, CheckMode.KEEP_COPLANAR) - tol
+        return f.collision.base_distance(body.name, m.mate, rel, KEEP_COPLANAR) - tol
     if mate.leave_when == "no_contact":
-        return f.collision.base_distance(body.name, m.mate, rel, CheckMode.KEEP_COPLANAR) - tol
+        return f.collision.base_distance(body.name, m.mate, rel, KEEP_COPLANAR) - tol
     return max(f.collision.support_distance(body.name, m.mate, foot) - tol
                for foot in _feet(mate, rel, body))
 
@@ -1180,9 +1190,9 @@ def _still_on_base(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, rel: sp.Pose
             return True
         if overlap < -2.0 * tol:
             return False
-        return f.collision.base_distance(body.name, m.mate, rel, CheckMode.KEEP_COPLANAR) <= tol
+        return f.collision.base_distance(body.name, m.mate, rel, KEEP_COPLANAR) <= tol
     if mate.leave_when == "no_contact":
-        return f.collision.base_distance(body.name, m.mate, rel, CheckMode.KEEP_COPLANAR) <= tol
+        return f.collision.base_distance(body.name, m.mate, rel, KEEP_COPLANAR) <= tol
     # The part tips over the edge once its centre of mass is no longer above the face.
     for foot in _feet(mate, rel, body):
         if f.collision.support_distance(body.name, m.mate, foot) > tol:
