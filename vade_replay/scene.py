@@ -210,30 +210,32 @@ def _gear_mesh(radius: float, height: float, teeth: int, tooth_depth: float,
         r = radius if phase < 0.5 else radius - tooth_depth
         outer.append((r * math.cos(a), r * math.sin(a)))
     z0, z1 = -0.5 * height, 0.5 * height
-    vertices: list[tuple[float, float, float]] = []
-    faces: list[tuple[int, int, int]] = []
+    # Rings of vertices (x, y from the lists above, z per ring) and faces as index arrays:
+    # the same numbers as written out vertex by vertex, built by numpy.
+    k = np.arange(n)
+    k1 = (k + 1) % n
+
+    def ring(xy: list[tuple[float, float]], z: float) -> np.ndarray:
+        return np.column_stack([np.array(xy), np.full(n, z)])
+
     if inner_radius:
         inner = [(inner_radius * math.cos(a), inner_radius * math.sin(a)) for a in angles]
         # Rings: outer bottom, outer top, inner bottom, inner top.
-        for ring, z in ((outer, z0), (outer, z1), (inner, z0), (inner, z1)):
-            vertices.extend((x, y, z) for x, y in ring)
+        vertices = np.concatenate([ring(outer, z0), ring(outer, z1), ring(inner, z0),
+                                   ring(inner, z1)])
         ob, ot, ib, it = 0, n, 2 * n, 3 * n
-        for i in range(n):
-            j = (i + 1) % n
-            faces += [(ob + i, ob + j, ot + j), (ob + i, ot + j, ot + i)]      # outer wall
-            faces += [(ib + i, it + j, ib + j), (ib + i, it + i, it + j)]      # bore wall
-            faces += [(ot + i, ot + j, it + j), (ot + i, it + j, it + i)]      # top annulus
-            faces += [(ob + i, ib + j, ob + j), (ob + i, ib + i, ib + j)]      # bottom annulus
+        faces_of_k = [(ob + k, ob + k1, ot + k1), (ob + k, ot + k1, ot + k),  # outer wall
+                      (ib + k, it + k1, ib + k1), (ib + k, it + k, it + k1),  # bore wall
+                      (ot + k, ot + k1, it + k1), (ot + k, it + k1, it + k),  # top annulus
+                      (ob + k, ib + k1, ob + k1), (ob + k, ib + k, ib + k1)]  # bottom
     else:
-        for z in (z0, z1):
-            vertices.extend((x, y, z) for x, y in outer)
-        vertices += [(0.0, 0.0, z0), (0.0, 0.0, z1)]
-        cb, ct = 2 * n, 2 * n + 1
-        for i in range(n):
-            j = (i + 1) % n
-            faces += [(i, j, n + j), (i, n + j, n + i)]
-            faces += [(n + i, n + j, ct), (i, cb, j)]
-    mesh = trimesh.Trimesh(vertices=np.array(vertices), faces=np.array(faces), process=True)
+        vertices = np.concatenate([ring(outer, z0), ring(outer, z1),
+                                   np.array([(0.0, 0.0, z0), (0.0, 0.0, z1)])])
+        cb, ct = np.full(n, 2 * n), np.full(n, 2 * n + 1)
+        faces_of_k = [(k, k1, n + k1), (k, n + k1, n + k), (n + k, n + k1, ct), (k, cb, k1)]
+    # Face m of vertex k is row len(faces_of_k) * k + m: the order of a loop over k.
+    faces = np.stack([np.stack(f, axis=1) for f in faces_of_k], axis=1).reshape(-1, 3)
+    mesh = trimesh.Trimesh(vertices=vertices, faces=faces, process=True)
     trimesh.repair.fix_normals(mesh)
     return mesh
 
@@ -326,10 +328,13 @@ def _mass_properties(doc: dict, mesh: trimesh.Trimesh, length_factor: float,
             "mesh is not watertight, so its volume and inertia are undefined; give "
             "mass_properties (a CAD report or the numbers) for this part", file=file,
             field=f"{where}.shape")
-    mesh = mesh.copy()
-    mesh.density = float(doc["density"])
-    props = MassProperties(float(mesh.mass), _vec(mesh.center_mass),
-                           tuple(_vec(row) for row in mesh.moment_inertia))  # type: ignore[arg-type]
+    # What Trimesh.mass_properties calls, with the density given: the same numbers as a
+    # copy of the mesh with its density set, without the copy (and its cache's hashing).
+    mass = trimesh.triangles.mass_properties(triangles=mesh.triangles,
+                                             crosses=mesh.triangles_cross,
+                                             density=float(doc["density"]))
+    props = MassProperties(float(mass.mass), _vec(mass.center_mass),
+                           tuple(_vec(row) for row in mass.inertia))  # type: ignore[arg-type, union-attr]
     return check(props, file=file, field=f"{where}.density")
 
 
