@@ -43,6 +43,7 @@ SLIDE_STEP_S = 1.0 / 180.0
 SLIDE_STEPS_S = {"analytic4": 1.0 / 60.0}
 SLIDE_ONSETS = ("located", "sub_step")
 SLIDE_OFFS = ("located", "frame_end")
+FINAL_POSE_CHECKS = ("path", "frame_end")
 
 
 @dataclass(frozen=True)
@@ -76,6 +77,9 @@ class Physics:
     # located: the instant a part slides off the base found within the frame; frame_end:
     # decided at the frame's end, as before 2026-11-22
     slide_off: str = "located"
+    # path: a sliding or turning part is PLACED if its path in the frame passes within the
+    # final tolerance; frame_end: only where a frame ends, as before 2026-11-22
+    final_pose_check: str = "path"
     turn_integrator: str = "yoshida6"        # paper: eq. 11 once per frame
     # Longest sub-steps on the base, read through turn_step_s / slide_step_s. None: the
     # default below, or onbase_max_step_s where a session sets that (for both).
@@ -94,6 +98,8 @@ class Physics:
             raise ValueError(f"slide_onset must be one of {SLIDE_ONSETS}")
         if self.slide_off not in SLIDE_OFFS:
             raise ValueError(f"slide_off must be one of {SLIDE_OFFS}")
+        if self.final_pose_check not in FINAL_POSE_CHECKS:
+            raise ValueError(f"final_pose_check must be one of {FINAL_POSE_CHECKS}")
         if self.turn_integrator not in TURN_INTEGRATORS:
             raise ValueError(f"turn_integrator must be one of {TURN_INTEGRATORS}")
 
@@ -128,7 +134,8 @@ class Physics:
 
 PAPER_DEFAULTS = {"free_rotation": "constant_omega", "release_velocity": "two_frame",
                   "slide_integrator": "paper", "turn_integrator": "paper",
-                  "slide_off": "frame_end"}  # the paper decides sliding frame by frame
+                  "slide_off": "frame_end",  # the paper decides sliding frame by frame
+                  "final_pose_check": "frame_end"}
 LENGTH_FIELDS = ("grab_radius", "contact_tolerance")
 
 
