@@ -83,3 +83,17 @@ def test_whether_it_is_placed_does_not_depend_on_the_frame_rate(rate_hz):
     t_enter = math.sqrt(2.0 * (Z_RELEASE - Z_FINAL - TOL) / G)
     release = round(1.3 * rate_hz)
     assert 0.0 <= (frame - release) / rate_hz - t_enter <= 1.0 / rate_hz + 1e-9
+
+
+def test_passed_just_before_a_block_it_is_placed_not_blocked():
+    # The final pose 3 mm above the block the sleeve lands on: in the frame it lands, its
+    # path passes the tolerance (2 mm wide) before the block stops it.
+    doc = _doc("path")
+    doc["parts"][0]["assembly"]["final_pose"]["position"] = [0, 0, 0.038]
+    records = run_records(doc)
+    k_block = next(k for k in range(1, 60) if _z(k) <= 0.035)  # from the closed form
+    assert _z(k_block - 1) > 0.038 + TOL  # the frame before ends above the tolerance
+    assert _placed_frame(records) == RELEASE_FRAME + k_block
+    at_end = run_records(_doc("frame_end") | {"parts": doc["parts"]})
+    assert _placed_frame(at_end) is None
+    assert at_end[-1].parts[0].mode == "ONBASESTATIC"

@@ -831,6 +831,7 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
     lift = _lift_off_fraction(f, mate) \
         if physics.slide_off == "located" and mate.kind != "axis" and dt > 0.0 else None
     blocked = None
+    x_end, a_end = x1, a1  # the frame's path ends here, whatever cuts it short below
     if x1 != m.slide or a1 != m.angle:
         m, blocked = _sweep(f, body, mate, m, x1, a1)
         if blocked is not None:
@@ -842,10 +843,20 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
                 x1 = tuple(x0 + lam * (xe - x0) for x0, xe in zip(m.slide, x1))
                 a1 = m.angle + lam * (a1 - m.angle)
     rel = cn.relative_pose(mate, m.base_from_snap, x1, a1)
+    assembly = cast(Assembly, body.assembly)
+    # The first fraction of the frame at which its path came within the final tolerance:
+    # PLACED then, unless it left or lifted off before (a block cuts the path short).
+    passed = None
+    if assembly.final_pose is not None and physics.final_pose_check == "path" and dt > 0.0:
+        passed = _final_fraction(mate, m, x_end, v1, a_end, w1, rel, assembly, dt,
+                                 1.0 if blocked is None else blocked[0])
     if not _still_on_base(f, body, mate, m, rel, x1):
         lam = _LEAVE_AT_END if blocked is not None or physics.slide_off != "located" \
             else _leaving_fraction(f, body, mate, m, x1, v1, a1, w1)
         if lift is None or lam <= lift:
+            if passed is not None and passed <= lam:
+                _place(f, index, Cause.REACHED_FINAL_POSE)
+                return
             if lam >= 1.0:
                 v_rel, w_rel = _relative_rates(body, mate, m, v1, a1, w1)
                 _leave(f, index, Cause.SLID_OFF, rel, v_rel, w_rel)
@@ -859,6 +870,9 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
             _fly(f, index)
             return
     if lift is not None:
+        if passed is not None and passed <= lift:
+            _place(f, index, Cause.REACHED_FINAL_POSE)
+            return
         _lift_off(f, index, body, mate, m, lift)
         return
     new = m.moved(x1, v1, a1, w1)
@@ -867,10 +881,8 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
         f.events.append(ContactMade(f.inputs.frame, part.name, Cause.BLOCKED.value,
                                     f.scene.base.name,  # type: ignore[union-attr]
                                     f.t_prev_ns + int(lam * (f.t_ns - f.t_prev_ns))))  # type: ignore[possibly-undefined]
-    assembly = cast(Assembly, body.assembly)
-    if assembly.final_pose is not None and (cn.at_final_pose(assembly, rel) or (
-            blocked is None and physics.final_pose_check == "path" and dt > 0.0
-            and _passes_final_pose(mate, m, x1, v1, a1, w1, rel, assembly, dt))):
+    if passed is not None or (assembly.final_pose is not None
+                              and cn.at_final_pose(assembly, rel)):
         _place(f, index, Cause.REACHED_FINAL_POSE)
         return
     v_rel, w_rel = _relative_rates(body, mate, new, new.slide_rate, new.angle, new.angle_rate)
@@ -1037,33 +1049,39 @@ def _path_at(m: OnBase, x1: tuple[float, ...], v1: tuple[float, ...], a1: float,
     return x, v, a, w_lam
 
 
-def _passes_final_pose(mate: cn.Mate, m: OnBase, x1: tuple[float, ...],
-                       v1: tuple[float, ...], a1: float, w1: float, end: sp.Pose,
-                       assembly: Assembly, dt: float) -> bool:
-    """Whether the frame's path (``_path_at``) came within the final tolerance between its
-    ends. Asked only at the frame's end, a part that slides or turns through its final pose
-    by more than the tolerance's width in a frame (4 mm at the default 2 mm: 0.24 m/s at
-    60 Hz) passed it unplaced, and whether it was placed depended on the frame rate.
+def _final_fraction(mate: cn.Mate, m: OnBase, x1: tuple[float, ...], v1: tuple[float, ...],
+                    a1: float, w1: float, end: sp.Pose, assembly: Assembly, dt: float,
+                    until: float) -> float | None:
+    """The first fraction of the frame, up to ``until`` (where a block stopped the part;
+    ``end`` is its pose there), at which the frame's path (``_path_at`` to ``x1``, ``a1``)
+    is within the final tolerance, or None. Asked only at the frame's end, a part that
+    slid or turned through its final pose by more than the tolerance's width in a frame
+    (4 mm at the default 2 mm: 0.24 m/s at 60 Hz) passed it unplaced, and whether it was
+    placed depended on the frame rate.
 
     The path is sampled so that the part's origin moves at most half the distance
     tolerance, and it turns at most half the angle tolerance, between samples (at most
     ``_FINAL_SAMPLES``); a path that cannot come near the final pose is not sampled."""
     final = cast(sp.Pose, assembly.final_pose)
     start = cn.relative_pose(mate, m.base_from_snap, m.slide, m.angle)
-    chord = sp.norm(sp.sub(end.position, start.position))
+    stop = cn.relative_pose(mate, m.base_from_snap, x1, a1)
     turn = abs(a1 - m.angle)
     # The origin's travel: along the slide, and around the axis at its distance from it.
-    reach = chord + turn * sp.norm(sp.sub(start.position, mate.base_points[0]))
-    if sp.norm(sp.sub(start.position, final.position)) > 2.0 * reach + assembly.final_distance:
-        return False
-    samples = max(math.ceil(reach / (0.5 * assembly.final_distance)),
-                  math.ceil(turn / (0.5 * assembly.final_angle)), 2)
-    samples = min(samples, _FINAL_SAMPLES)
-    for k in range(1, samples):
-        x, _, a, _ = _path_at(m, x1, v1, a1, w1, k / samples, dt)
-        if cn.at_final_pose(assembly, cn.relative_pose(mate, m.base_from_snap, x, a)):
-            return True
-    return False
+    reach = sp.norm(sp.sub(stop.position, start.position)) \
+        + turn * sp.norm(sp.sub(start.position, mate.base_points[0]))
+    if sp.norm(sp.sub(start.position, final.position)) <= 2.0 * reach \
+            + assembly.final_distance:
+        samples = max(math.ceil(reach / (0.5 * assembly.final_distance)),
+                      math.ceil(turn / (0.5 * assembly.final_angle)), 2)
+        samples = min(samples, _FINAL_SAMPLES)
+        for k in range(1, samples):
+            lam = k / samples
+            if lam >= until:
+                break
+            x, _, a, _ = _path_at(m, x1, v1, a1, w1, lam, dt)
+            if cn.at_final_pose(assembly, cn.relative_pose(mate, m.base_from_snap, x, a)):
+                return lam
+    return until if cn.at_final_pose(assembly, end) else None
 
 
 _FINAL_SAMPLES = 256
