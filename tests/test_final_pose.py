@@ -74,15 +74,87 @@ def test_checked_at_frame_ends_only_it_passes_unplaced():
     assert records[-1].parts[0].mode == "ONBASESTATIC"  # stopped on the block below
 
 
-@pytest.mark.parametrize("rate_hz", [60, 240])
-def test_whether_it_is_placed_does_not_depend_on_the_frame_rate(rate_hz):
-    records = run_records(_doc("path", rate_hz))
-    frame = _placed_frame(records)
+@pytest.mark.parametrize("rate_hz", [30, 60, 120, 240])
+@pytest.mark.parametrize("z_final, tol", [(Z_FINAL, TOL), (Z_FINAL, 2e-5), (0.047, TOL),
+                                          (0.039, TOL), (0.0368, 1e-4)])
+def test_placed_in_the_frame_it_enters_the_tolerance_at_any_rate(rate_hz, z_final, tol):
+    # Mid-shaft, a tolerance 0.04 mm wide (1.5 mm of fall a frame at 30 Hz is 37 of its
+    # widths), and final poses just above the block it lands on at z = 0.035.
+    doc = _doc("path", rate_hz)
+    assembly = doc["parts"][0]["assembly"]
+    assembly["final_pose"]["position"] = [0, 0, z_final]
+    assembly["final_tolerance"]["distance"] = tol
+    frame = _placed_frame(run_records(doc))
     assert frame is not None
-    # Placed within one frame of when the closed form enters the tolerance.
-    t_enter = math.sqrt(2.0 * (Z_RELEASE - Z_FINAL - TOL) / G)
+    # Within one frame after the closed form enters the tolerance.
+    t_enter = math.sqrt(2.0 * (Z_RELEASE - z_final - tol) / G)
     release = round(1.3 * rate_hz)
     assert 0.0 <= (frame - release) / rate_hz - t_enter <= 1.0 / rate_hz + 1e-9
+
+
+def _relative(record) -> tuple[list[float], list[float]]:
+    """The part's pose in the base frame: position and xyzw."""
+    from vade_replay import spatial as sp
+    base = sp.Pose(tuple(record.base.position), tuple(record.base.rotation_xyzw))
+    part = record.parts[0]
+    rel = base.inverse().compose(sp.Pose(tuple(part.position), tuple(part.rotation_xyzw)))
+    return list(rel.position), list(rel.rotation)
+
+
+def _placed_time(doc: dict) -> float | None:
+    records = run_records(doc)
+    frame = _placed_frame(records)
+    return None if frame is None else frame / doc["tracker"]["rate_hz"]
+
+
+def test_a_gear_swinging_through_its_final_angle_is_placed_as_it_passes():
+    # The gear_pendulum golden swings its weighted gear about a shaft, 4.55 rad/s at the
+    # bottom (1.56 s): 4.3 deg a frame at 60 Hz against a tolerance 1 deg wide. The final
+    # pose is the gear's pose a quarter of a 60 Hz frame after 1.55 s in a 960 Hz run, so
+    # that neither a 60 Hz frame's end nor its middle is within the tolerance; 960 Hz
+    # checked at frame ends (0.27 deg a frame) is the reference for when it first is.
+    doc = json.loads((RECORDINGS / "gear_pendulum.json").read_text())
+    doc["tracker"]["duration_s"] = 2.0
+    fine = copy.deepcopy(doc)
+    fine["tracker"]["rate_hz"] = 960
+    records = run_records(fine)
+    t_final = 1.55 + 0.25 / 60.0
+    position, xyzw = _relative(records[round(t_final * 960)])
+    doc["parts"][0]["assembly"]["final_pose"] = {"position": position, "xyzw": xyzw}
+    doc["parts"][0]["assembly"]["final_tolerance"] = {"distance": 0.002, "angle_deg": 0.5}
+    doc["physics"] = {"final_pose_check": "frame_end"}
+    fine = copy.deepcopy(doc)
+    fine["tracker"]["rate_hz"] = 960
+    t_ref = _placed_time(fine)
+    assert t_ref is not None and t_ref <= t_final + 1e-9
+    doc["physics"] = {"final_pose_check": "path"}
+    t_path = _placed_time(doc)
+    assert t_path is not None and 0.0 <= t_path - t_ref <= 1.0 / 60.0 + 1.0 / 960.0 + 1e-9
+    doc["physics"] = {"final_pose_check": "frame_end"}
+    t_end = _placed_time(doc)
+    assert t_end is None or t_end > t_path
+
+
+def test_a_block_sliding_on_a_plane_through_its_final_pose_is_placed():
+    # plane_block_wall: the block slides down the tilted plate to the wall. A final pose
+    # on its way, from a 960 Hz run, with a 0.2 mm tolerance.
+    doc = json.loads((RECORDINGS / "plane_block_wall.json").read_text())
+    fine = copy.deepcopy(doc)
+    fine["tracker"]["rate_hz"] = 960
+    records = run_records(fine)
+    moving = [r for r in records if r.parts[0].mode == "ONBASESLIDE"
+              and max(abs(v) for v in r.parts[0].linear_velocity) > 0.1]
+    assert moving, "the block never slid fast"
+    position, xyzw = _relative(moving[len(moving) // 2])
+    assembly = doc["parts"][0]["assembly"]
+    assembly["final_pose"] = {"position": position, "xyzw": xyzw}
+    assembly["final_tolerance"] = {"distance": 0.0002, "angle_deg": 1.0}
+    t_fast = moving[len(moving) // 2].frame / 960
+    doc.setdefault("physics", {})["final_pose_check"] = "path"
+    t_path = _placed_time(doc)
+    assert t_path is not None and 0.0 <= t_path - t_fast <= 1.0 / 60.0 + 1e-9
+    doc["physics"]["final_pose_check"] = "frame_end"
+    assert _placed_time(doc) is None
 
 
 def test_passed_just_before_a_block_it_is_placed_not_blocked():
