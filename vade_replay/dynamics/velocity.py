@@ -19,9 +19,6 @@ less than half a turn per frame are measured right.
 
 from __future__ import annotations
 
-import struct
-from functools import lru_cache
-
 from .. import spatial as sp
 
 Sample = tuple[int, sp.Vec3, sp.Quat]  # time_ns, world CM, world rotation of the part
@@ -47,35 +44,28 @@ def _distinct(history: tuple) -> list:
     return out
 
 
-@lru_cache(maxsize=16)
-def _moments(times: tuple[float, ...]) -> tuple[float, float, float, float, float]:
+def _moments(times: list[float]) -> tuple[float, float, float, float, float]:
     """Sums of t^k and the determinant of the normal equations of x(t) = c0 + c1 t + c2 t^2
-    (the same for every coordinate and for both velocities; a steady tracker repeats them)."""
+    (the same for every coordinate and for both velocities). Each sum is added from 0.0 in
+    sample order, the bits of ``sum`` on Python 3.11 (3.12's ``sum`` compensates, which
+    this does not, so the bits do not depend on the Python). Computed afresh: compiled,
+    the ``lru_cache`` that held them cost more in hashing its key than the sums."""
     n = len(times)
-    s1 = sum(times)
-    s2 = sum(t * t for t in times)
-    s3 = sum(t * t * t for t in times)
-    s4 = sum(t * t * t * t for t in times)
+    s1 = s2 = s3 = s4 = 0.0
+    for t in times:
+        s1 += t
+        s2 += t * t
+        s3 += t * t * t
+        s4 += t * t * t * t
     det = n * (s2 * s4 - s3 * s3) - s1 * (s1 * s4 - s3 * s2) + s2 * (s1 * s3 - s2 * s2)
     return s1, s2, s3, s4, det
 
 
-_TURNS: dict[bytes, sp.Vec3] = {}
-_PACK = struct.Struct("8d").pack
-
-
 def _turn_between(older: tuple, newer: tuple) -> sp.Vec3:
-    """Rotation vector from ``newer`` to ``older`` (world axes). Each pair is met again as
-    the window slides, so it is remembered, keyed by the exact bits (-0.0 is not 0.0):
-    a pure function, so the cache changes no result. (Plain tuples, as in ``_distinct``:
-    the key is packed from the float objects as they are.)"""
-    key = _PACK(*older, *newer)
-    turn = _TURNS.get(key)
-    if turn is None:
-        if len(_TURNS) >= 256:
-            _TURNS.clear()
-        turn = _TURNS[key] = sp.quat_to_rotvec(sp.quat_mul(older, sp.quat_conj(newer)))
-    return turn
+    """Rotation vector from ``newer`` to ``older`` (world axes). (Plain tuples, as in
+    ``_distinct``.) Computed afresh each time a pair is met as the window slides:
+    compiled, a cache keyed by the pair's packed bits cost twice the computation."""
+    return sp.quat_to_rotvec(sp.quat_mul(older, sp.quat_conj(newer)))
 
 
 def _slope_at_zero(times: list[float], values: list[sp.Vec3]) -> sp.Vec3:
@@ -86,7 +76,7 @@ def _slope_at_zero(times: list[float], values: list[sp.Vec3]) -> sp.Vec3:
     if n == 2:
         dt = times[1] - times[0]
         return sp.scale(sp.sub(values[1], values[0]), 1.0 / dt)
-    s1, s2, s3, s4, det = _moments(tuple(times))
+    s1, s2, s3, s4, det = _moments(times)
     if det == 0.0:
         return sp.ZERO3
     # sum(v), sum(t v), sum(t t v) of each coordinate in sample order, as (t * t) * v: each
