@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import replace
+from typing import Final
 
 import orjson
 
@@ -19,10 +20,10 @@ from .errors import RecordingError
 from .frames import (MAX_ABS_POSITION_M, DeviceSample, FrameRecord, PartSnapshot,
                      TrackerFrame, changed_indices)
 
-TRACKER_TOPIC = "/tracker"
-PARTS_TOPIC = "/parts"
-FOXGLOVE_TOPIC = "/foxglove/transforms"
-EVENT_TOPIC_PREFIX = "/events/"
+TRACKER_TOPIC: Final = "/tracker"
+PARTS_TOPIC: Final = "/parts"
+FOXGLOVE_TOPIC: Final = "/foxglove/transforms"
+EVENT_TOPIC_PREFIX: Final = "/events/"
 
 # topic -> (schema name, schema file in schemas/)
 CHANNELS = {

@@ -10,12 +10,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 from itertools import compress
 from operator import is_not
+from typing import Final
 
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]  # x, y, z, w
 
 # Tracker positions beyond this (metres) are a unit or export mistake, not a room.
-MAX_ABS_POSITION_M = 1e6
+MAX_ABS_POSITION_M: Final = 1e6
 
 
 # The classes here, in state.py and spatial.Pose are values: never changed after they are

@@ -12,6 +12,7 @@ import io
 import json
 import math
 from dataclasses import dataclass, field, fields, replace
+from typing import Final
 
 import numpy as np
 import trimesh
@@ -38,8 +39,8 @@ MESH_TYPES = {".stl": "stl", ".obj": "obj", ".glb": "glb", ".gltf": "gltf", ".pl
 # keep the 1/180 s chosen for them (analytic, the default before analytic4, is within
 # 1e-5 m at 1 rad/s there), so that a recording made with one needs only its integrator
 # (and, before slide_onset existed, slide_onset=sub_step) set to replay as it was made.
-TURN_STEP_S = 1.0 / 120.0
-SLIDE_STEP_S = 1.0 / 180.0
+TURN_STEP_S: Final = 1.0 / 120.0
+SLIDE_STEP_S: Final = 1.0 / 180.0
 SLIDE_STEPS_S = {"analytic4": 1.0 / 60.0}
 SLIDE_ONSETS = ("located", "sub_step")
 SLIDE_OFFS = ("located", "frame_end")

@@ -34,8 +34,8 @@ INSPACE: Final = Mode.INSPACE
 STATIC: Final = Mode.STATIC
 PLACED: Final = Mode.PLACED
 _GRABBABLE = (STATIC, INSPACE, ONBASESLIDE, ONBASESTATIC, PLACED)
-_CA_MAX_ITERATIONS = 10_000
-_MIN_SUPPORT_COS = 0.1
+_CA_MAX_ITERATIONS: Final = 10_000
+_MIN_SUPPORT_COS: Final = 0.1
 
 
 @dataclass(slots=True)
@@ -525,13 +525,13 @@ def _time_of_contact(f: _Frame, body: Body, start: free.Flight, near: tuple[int,
 
 # --- constrained motion on the base (paper 5.2, 5.3, 6) -----------------------------------
 
-_CA_BASE_ITERATIONS = 4096
+_CA_BASE_ITERATIONS: Final = 4096
 _INSIDE_ENVELOPE = True  # the shortcut of _sweep for turning in place (off in a test)
 _STATIC_HOLD = True  # the shortcut of _slide_and_turn for a held slide (off in a test)
 # Allowance (in tolerances) for fcl's distance from the envelope, a cylinder primitive
 # (GJK), so that the envelope's clearance is a safe lower bound of the part's distance.
-_ENVELOPE_MARGIN = 0.01
-_CONTACT_SLACK_M = 1e-9  # round-off allowance for a part moving along an obstacle it touches
+_ENVELOPE_MARGIN: Final = 0.01
+_CONTACT_SLACK_M: Final = 1e-9  # round-off allowance for a part moving along an obstacle it touches
 
 
 def _to_base(f: _Frame, world: sp.Vec3) -> sp.Vec3:
@@ -1027,8 +1027,8 @@ def _distance(a: tuple[float, ...], b: tuple[float, ...]) -> float:
     return math.sqrt(total)
 
 
-_LEAVE_AT_END = 1.0
-_LEAVING_ITERATIONS = 40  # at most; it stops at 0.1 ns
+_LEAVE_AT_END: Final = 1.0
+_LEAVING_ITERATIONS: Final = 40  # at most; it stops at 0.1 ns
 
 
 def _path_at(m: OnBase, x1: tuple[float, ...], v1: tuple[float, ...], a1: float, w1: float,
@@ -1109,8 +1109,8 @@ def _final_fraction(mate: cn.Mate, m: OnBase, x1: tuple[float, ...], v1: tuple[f
     return until if cn.at_final_pose(assembly, end) else None
 
 
-_FINAL_DEPTH = 30
-_FINAL_EVALUATIONS = 4096
+_FINAL_DEPTH: Final = 30
+_FINAL_EVALUATIONS: Final = 4096
 
 
 def _leaving_fraction(f: _Frame, body: Body, mate: cn.Mate, m: OnBase,

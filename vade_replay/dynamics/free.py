@@ -22,10 +22,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Final
 
 from .. import spatial as sp
 
-_CBRT2 = 2.0 ** (1.0 / 3.0)
+_CBRT2: Final = 2.0 ** (1.0 / 3.0)
 _Y4 = (1.0 / (2.0 - _CBRT2), -_CBRT2 / (2.0 - _CBRT2), 1.0 / (2.0 - _CBRT2))
 # Yoshida (1990) sixth order, solution A.
 _W1, _W2, _W3 = -1.17767998417887, 0.235573213359357, 0.784513610477560
@@ -238,7 +239,7 @@ def rotate_euler(q: sp.Quat, momentum: sp.Vec3, dt_s: float, moments: sp.Vec3, *
     return sp.quat_normalize(q), (m0, m1, m2)
 
 
-_SYMMETRY_RTOL = 1e-12
+_SYMMETRY_RTOL: Final = 1e-12
 
 
 def symmetry(moments: sp.Vec3) -> tuple[int, float] | None:
@@ -271,7 +272,7 @@ def rotate_symmetric(q: sp.Quat, momentum: sp.Vec3, dt_s: float, moments: sp.Vec
 
 
 # Two moments closer than this (relative to the larger) make a body a nearly symmetric top.
-_NEAR_SYMMETRY_RTOL = 1e-3
+_NEAR_SYMMETRY_RTOL: Final = 1e-3
 
 
 def near_symmetry(moments: sp.Vec3) -> tuple[int, float] | None:

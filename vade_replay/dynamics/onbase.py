@@ -68,6 +68,7 @@ by ``theta`` about the shaft. Integrators:
 from __future__ import annotations
 
 import math
+from typing import Final
 
 from .. import spatial as sp
 from .free import COMPOSITIONS
@@ -247,11 +248,11 @@ def _euler_substep(x: list[float], v: list[float], h: float, gt: tuple[float, ..
 # Below these ratios the friction direction does not turn measurably within a sub-step (the
 # velocity is along g_t to 1e-12 rad, or g_t is 1e-12 of the friction), and the constant-
 # acceleration update is exact to round-off; the closed form would need u0^4 ~ 1e48.
-_PARALLEL = 1e-12
+_PARALLEL: Final = 1e-12
 # A speed below this fraction of what a sub-step's accelerations add is treated as rest: for
 # a part that accelerates from it, e^{2|a| lambda} ~ (speed gained / speed)^2 in the closed
 # form would overflow.
-_TINY_SPEED = 1e-100
+_TINY_SPEED: Final = 1e-100
 
 
 def _plane_flow(x: list[float], v: list[float], h: float, gt: tuple[float, ...], gmag: float,
@@ -430,10 +431,10 @@ def turn(force: TurnForce, theta: float, omega: float, dt: float, steps: int,
 # The commutator-free fourth-order scheme of Blanes and Moan (2006) with two exponentials:
 # flows of h/2 under (w_main F(t_early) + w_back F(t_late)), then under the weights swapped,
 # F(t) the sliding equations with gravity frozen at t, t_early and t_late the Gauss nodes.
-_CF4_EARLY = 0.5 - math.sqrt(3.0) / 6.0
-_CF4_LATE = 0.5 + math.sqrt(3.0) / 6.0
-_CF4_MAIN = 0.5 + math.sqrt(3.0) / 3.0
-_CF4_BACK = 0.5 - math.sqrt(3.0) / 3.0
+_CF4_EARLY: Final = 0.5 - math.sqrt(3.0) / 6.0
+_CF4_LATE: Final = 0.5 + math.sqrt(3.0) / 6.0
+_CF4_MAIN: Final = 0.5 + math.sqrt(3.0) / 3.0
+_CF4_BACK: Final = 0.5 - math.sqrt(3.0) / 3.0
 
 
 def substeps(dt: float, max_step_s: float) -> int:
@@ -508,7 +509,7 @@ def slide(mate_kind: str, normals: tuple[sp.Vec3, ...], axis: sp.Vec3 | None,
 
 # Stops and starts located within one sub-step, at most (a part chattering between stick
 # and slip faster than this rests for the rest of the sub-step).
-_MAX_EVENTS = 8
+_MAX_EVENTS: Final = 8
 
 
 def _drive_at(path: GravityPath, tau: float, mate_kind: str, normals: tuple[sp.Vec3, ...],
@@ -601,7 +602,7 @@ def _flow(integrator: str, xs: list[float], vs: list[float], path: GravityPath, 
 
 
 # Bisections of a stop instant within an analytic4 sub-step (to ~1e-12 of a frame).
-_STOP_BISECTIONS = 40
+_STOP_BISECTIONS: Final = 40
 
 
 def _cf4(xs: list[float], vs: list[float], path: GravityPath, a: float, b: float, dt: float,

@@ -19,6 +19,8 @@ less than half a turn per frame are measured right.
 
 from __future__ import annotations
 
+from typing import Final
+
 from .. import spatial as sp
 
 Sample = tuple[int, sp.Vec3, sp.Quat]  # time_ns, world CM, world rotation of the part
@@ -26,7 +28,7 @@ Sample = tuple[int, sp.Vec3, sp.Quat]  # time_ns, world CM, world rotation of th
 
 # Samples closer than this to the next one carry noise, not rate: 0.5 ms, half the interval
 # of a 1 kHz tracker.
-MIN_INTERVAL_NS = 500_000
+MIN_INTERVAL_NS: Final = 500_000
 
 
 # Samples travel as plain Python tuples (``tuple``, ``list``: items typed Any). Typed as
