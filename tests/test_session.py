@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import itertools
 import json
 import math
 
@@ -84,6 +85,27 @@ def test_gear_is_a_closed_solid_with_a_bore():
     hi = 7800 * math.pi * (0.04**2 - 0.006**2) * 0.01
     assert lo < body.mass_kg < hi
     assert np.allclose(body.center_of_mass, 0.0, atol=1e-9)
+
+
+def test_gear_meshes_are_wound_outward_by_construction():
+    # _gear_mesh does not call trimesh.repair.fix_normals: every gear must already be a
+    # closed solid with consistent winding and a positive volume, so that fixing would
+    # change nothing.
+    from vade_replay.scene import _gear_mesh
+    count = 0
+    for teeth, inner, per_tooth, depth in itertools.product(
+            (3, 5, 12, 16, 31, 64), (None, 0.002, 0.006, 0.02), (1, 2, 4, 8),
+            (0.001, 0.004, 0.01)):
+        if inner and inner >= 0.04 - depth:
+            continue
+        mesh = _gear_mesh(0.04, 0.01, teeth, depth, inner, per_tooth)
+        assert mesh.is_watertight and mesh.is_winding_consistent, (teeth, inner, per_tooth)
+        assert mesh.volume > 0.0, (teeth, inner, per_tooth, depth)
+        fixed = mesh.copy()
+        trimesh.repair.fix_normals(fixed)
+        assert np.array_equal(fixed.faces, mesh.faces)
+        count += 1
+    assert count == 288
 
 
 @pytest.mark.parametrize("file_type", ["stl", "obj", "glb", "ply"])
