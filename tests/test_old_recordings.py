@@ -28,12 +28,14 @@ def test_an_old_recording_names_the_changed_defaults_and_replays_with_them():
     assert changed["slide_onset"] == {"recorded": "sub_step", "now": "located"}
     assert changed["slide_off"] == {"recorded": "frame_end", "now": "located"}
     assert changed["final_pose_check"] == {"recorded": "frame_end", "now": "path"}
+    assert changed["block_cut"] == {"recorded": "both", "now": "blamed"}
     assert changed["slide_step_s"] == {"recorded": 1 / 180, "now": 1 / 60}
     assert set(changed) == {"slide_integrator", "slide_onset", "slide_off", "slide_step_s",
-                            "final_pose_check"}
+                            "final_pose_check", "block_cut"}
     # analytic brings its own 1/180 s, so the step need not be set.
     options, left_out = as_recorded(changed)
-    assert options == ("--set physics.final_pose_check=frame_end "
+    assert options == ("--set physics.block_cut=both "
+                       "--set physics.final_pose_check=frame_end "
                        "--set physics.slide_integrator=analytic "
                        "--set physics.slide_off=frame_end "
                        "--set physics.slide_onset=sub_step") and left_out == []
@@ -51,8 +53,8 @@ def test_the_cli_says_so_beside_the_divergence(tmp_path):
     assert lines[1].startswith("note: this recording was made with other physics defaults")
     assert "--set physics.slide_integrator=analytic" in lines[1]
     many = run_cli("vade-replay", str(OLD), str(RECORDINGS / "gear_pendulum.mcap"))
-    assert ("(made with other physics defaults: final_pose_check, slide_integrator, "
-            "slide_off, slide_onset, slide_step_s)") in many.stdout
+    assert ("(made with other physics defaults: block_cut, final_pose_check, "
+            "slide_integrator, slide_off, slide_onset, slide_step_s)") in many.stdout
     as_json = run_cli("vade-replay", str(OLD), "--json")
     assert json.loads(as_json.stdout)["physics_changed"]["slide_integrator"]["now"] == "analytic4"
 
@@ -129,7 +131,7 @@ def test_vade_goldens_check_says_a_default_changed_since_a_golden_was_recorded(t
     result = run_cli("vade-goldens", "--check", "--dir", str(tmp_path))
     assert result.returncode == 1
     assert "DIVERGED first divergence at frame" in result.stdout
-    assert ("recorded with other physics defaults: final_pose_check, slide_integrator, "
-            "slide_off, slide_onset, slide_step_s; if that change is meant, re-record with "
-            "vade-goldens") in result.stdout
+    assert ("recorded with other physics defaults: block_cut, final_pose_check, "
+            "slide_integrator, slide_off, slide_onset, slide_step_s; if that change is meant, "
+            "re-record with vade-goldens") in result.stdout
 

@@ -45,6 +45,7 @@ SLIDE_STEPS_S = {"analytic4": 1.0 / 60.0}
 SLIDE_ONSETS = ("located", "sub_step")
 SLIDE_OFFS = ("located", "frame_end")
 FINAL_POSE_CHECKS = ("path", "frame_end")
+BLOCK_CUTS = ("blamed", "both")
 
 
 @dataclass(frozen=True)
@@ -81,6 +82,9 @@ class Physics:
     # path: a sliding or turning part is PLACED if its path in the frame passes within the
     # final tolerance; frame_end: only where a frame ends, as before 2026-11-22
     final_pose_check: str = "path"
+    # blamed: a block cuts at the contact only the motion it stops (slide or turn); both:
+    # slide and turn, as before 2026-11-22 (a turn cut so kept its end rate: energy gained)
+    block_cut: str = "blamed"
     turn_integrator: str = "yoshida6"        # paper: eq. 11 once per frame
     # Longest sub-steps on the base, read through turn_step_s / slide_step_s. None: the
     # default below, or onbase_max_step_s where a session sets that (for both).
@@ -101,6 +105,8 @@ class Physics:
             raise ValueError(f"slide_off must be one of {SLIDE_OFFS}")
         if self.final_pose_check not in FINAL_POSE_CHECKS:
             raise ValueError(f"final_pose_check must be one of {FINAL_POSE_CHECKS}")
+        if self.block_cut not in BLOCK_CUTS:
+            raise ValueError(f"block_cut must be one of {BLOCK_CUTS}")
         if self.turn_integrator not in TURN_INTEGRATORS:
             raise ValueError(f"turn_integrator must be one of {TURN_INTEGRATORS}")
 
@@ -136,7 +142,7 @@ class Physics:
 PAPER_DEFAULTS = {"free_rotation": "constant_omega", "release_velocity": "two_frame",
                   "slide_integrator": "paper", "turn_integrator": "paper",
                   "slide_off": "frame_end",  # the paper decides sliding frame by frame
-                  "final_pose_check": "frame_end"}
+                  "final_pose_check": "frame_end", "block_cut": "both"}
 LENGTH_FIELDS = ("grab_radius", "contact_tolerance")
 
 

@@ -840,8 +840,13 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
                 blocked = None  # lifted off before it reached the obstacle
             else:
                 lift = None  # stopped first; a lift is found again next frame, at its start
-                x1 = tuple(x0 + lam * (xe - x0) for x0, xe in zip(m.slide, x1))
-                a1 = m.angle + lam * (a1 - m.angle)
+                # Only what the obstacle stops is cut at the contact: a collar that stops a
+                # slide along the shaft leaves the turn about it alone (cut too, it kept
+                # the frame's end rate at the contact's angle: energy from nowhere).
+                if blame_slide or physics.block_cut == "both":
+                    x1 = tuple(x0 + lam * (xe - x0) for x0, xe in zip(m.slide, x1))
+                if blame_turn or physics.block_cut == "both":
+                    a1 = m.angle + lam * (a1 - m.angle)
     rel = cn.relative_pose(mate, m.base_from_snap, x1, a1)
     assembly = cast(Assembly, body.assembly)
     # The first fraction of the frame at which its path came within the final tolerance:
