@@ -93,22 +93,18 @@ class Physics:
     slide_max_step_s: float | None = None
 
     def __post_init__(self) -> None:
-        if self.free_rotation not in FREE_ROTATIONS:
-            raise ValueError(f"free_rotation must be one of {FREE_ROTATIONS}")
-        if self.free_rotation_order not in COMPOSITIONS:
-            raise ValueError(f"free_rotation_order must be one of {tuple(COMPOSITIONS)}")
-        if self.slide_integrator not in SLIDE_INTEGRATORS:
-            raise ValueError(f"slide_integrator must be one of {SLIDE_INTEGRATORS}")
-        if self.slide_onset not in SLIDE_ONSETS:
-            raise ValueError(f"slide_onset must be one of {SLIDE_ONSETS}")
-        if self.slide_off not in SLIDE_OFFS:
-            raise ValueError(f"slide_off must be one of {SLIDE_OFFS}")
-        if self.final_pose_check not in FINAL_POSE_CHECKS:
-            raise ValueError(f"final_pose_check must be one of {FINAL_POSE_CHECKS}")
-        if self.block_cut not in BLOCK_CUTS:
-            raise ValueError(f"block_cut must be one of {BLOCK_CUTS}")
-        if self.turn_integrator not in TURN_INTEGRATORS:
-            raise ValueError(f"turn_integrator must be one of {TURN_INTEGRATORS}")
+        choices: tuple[tuple[str, object, tuple], ...] = (
+            ("free_rotation", self.free_rotation, FREE_ROTATIONS),
+            ("free_rotation_order", self.free_rotation_order, tuple(COMPOSITIONS)),
+            ("slide_integrator", self.slide_integrator, SLIDE_INTEGRATORS),
+            ("slide_onset", self.slide_onset, SLIDE_ONSETS),
+            ("slide_off", self.slide_off, SLIDE_OFFS),
+            ("final_pose_check", self.final_pose_check, FINAL_POSE_CHECKS),
+            ("block_cut", self.block_cut, BLOCK_CUTS),
+            ("turn_integrator", self.turn_integrator, TURN_INTEGRATORS))
+        for name, value, allowed in choices:
+            if value not in allowed:
+                raise ValueError(f"{name} must be one of {allowed}")
 
     @property
     def turn_step_s(self) -> float:
