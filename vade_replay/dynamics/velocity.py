@@ -70,15 +70,18 @@ def _turn_between(older: tuple, newer: tuple) -> sp.Vec3:
     return sp.quat_to_rotvec(sp.quat_mul(older, sp.quat_conj(newer)))
 
 
-def _slope_at_zero(times: list[float], values: list[sp.Vec3]) -> sp.Vec3:
-    """d/dt at t = 0 of the least-squares polynomial (degree 2, or 1 for two points)."""
+def _slope_at_zero(times: list[float], values: list[sp.Vec3],
+                   moments: tuple[float, float, float, float, float]) -> sp.Vec3:
+    """d/dt at t = 0 of the least-squares polynomial (degree 2, or 1 for two points);
+    ``moments`` are ``_moments(times)`` (used for three points or more), shared by the
+    linear and the angular velocity."""
     n = len(times)
     if n < 2:
         return sp.ZERO3
     if n == 2:
         dt = times[1] - times[0]
         return sp.scale(sp.sub(values[1], values[0]), 1.0 / dt)
-    s1, s2, s3, s4, det = _moments(times)
+    s1, s2, s3, s4, det = moments
     if det == 0.0:
         return sp.ZERO3
     # sum(v), sum(t v), sum(t t v) of each coordinate in sample order, as (t * t) * v: each
@@ -128,4 +131,6 @@ def estimate(history: tuple, *, method: str, window: int) -> tuple[sp.Vec3, sp.V
         step = _turn_between(samples[i - 1][2], samples[i][2])
         rotvecs.append(sp.add(rotvecs[-1], step))
     rotvecs.reverse()
-    return _slope_at_zero(times, positions), _slope_at_zero(times, rotvecs)
+    moments = _moments(times)
+    return (_slope_at_zero(times, positions, moments),
+            _slope_at_zero(times, rotvecs, moments))
