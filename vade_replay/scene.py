@@ -33,7 +33,7 @@ MESH_TYPES = {".stl": "stl", ".obj": "obj", ".glb": "glb", ".gltf": "gltf", ".pl
 
 # Default sub-steps on the base, chosen by vade-bench (BENCHMARKS.md): at 60 Hz frames,
 # yoshida6 turning at two sub-steps is within 1.3e-7 rad of the reference for the gear
-# pendulum at 0.09 ms per simulated second (compiled); analytic4 sliding is exact on a
+# pendulum at ~0.06 ms per simulated second (compiled); analytic4 sliding is exact on a
 # still base at any step and within 1e-8 m with the base turning at 1 or 4 rad/s at one
 # sub-step a frame. The default step goes with the integrator: the second-order schemes
 # keep the 1/180 s chosen for them (analytic, the default before analytic4, is within
