@@ -361,6 +361,72 @@ def test_turning_and_sliding_on_a_still_shaft_never_gains_energy(tilt_deg, start
         e_min = min(e_min, e)
 
 
+def _arm_on_a_shaft_over_a_rail(physics=None):
+    """An arm (its CM 3 cm off the shaft) on a horizontal frictionless shaft along base x,
+    0.4 m long, and a rail beside the shaft and along it, which stops the arm's swing and
+    not its slide. Returns the scene and a world maker: (slide, angle, their rates)."""
+    from vade_replay import constraints as cn
+    from vade_replay.scene import build_scene
+    q = sp.quat_axis_angle((0.0, 1.0, 0.0), math.pi / 2)  # a cylinder's z onto base x
+    base = {"name": "shaft", "shape": {"type": "compound", "children": [
+        {"type": "cylinder", "radius": 0.006, "height": 0.4, "pose": {"xyzw": list(q)}},
+        {"type": "box", "size": [0.6, 0.02, 0.02], "pose": {"position": [0.0, 0.04, -0.04]}}]}}
+    arm = {"name": "arm", "shape": {"type": "compound", "children": [
+        {"type": "box", "size": [0.08, 0.01, 0.01], "pose": {"position": [0.03, 0.0, 0.0]}}]},
+        "mass_properties": {"mass": 0.1, "center_of_mass": [0.03, 0.0, 0.0],
+                            "inertia": [[1e-5, 0, 0], [0, 6e-5, 0], [0, 0, 6e-5]]},
+        "assembly": {"constraints": [
+            {"type": "axis", "radius": 0.006,
+             "part": {"point": [0, 0, 0], "direction": [0, 0, 1]},
+             "base": {"point": [0, 0, 0], "direction": [1, 0, 0]},
+             "friction": {"static": 0.0, "dynamic": 0.0, "rotational": 0.0}}]}}
+    scene = build_scene(S.base_session([arm], base, physics), {})
+    body = scene.parts[0]
+    mate = body.assembly.mates[0]
+    snapped = cn.recognise(mate, S.disc_on_shaft_pose((1.0, 0.0, 0.0)))
+    base_pose = sp.Pose((0.0, 0.0, 1.0))
+
+    def world(x, angle, slide_rate, angle_rate) -> WorldState:
+        m = OnBase(0, snapped, (x,), (slide_rate,), angle=angle, angle_rate=angle_rate,
+                   cm_offset=cn.cm_offset_base(mate, snapped))
+        part = PartState(body.name, Mode.ONBASESLIDE,
+                         base_pose.compose(cn.relative_pose(mate, snapped, (x,), angle)),
+                         motion=m)
+        return WorldState(0, 0, (part,), base_pose, ((LEFT, True), (RIGHT, False)))
+    return scene, world
+
+
+@pytest.mark.parametrize("block_cut", ["blamed", "both"])
+def test_a_turn_stopped_in_the_frame_the_part_slides_off_does_not_leave_with_its_rate(block_cut):
+    """The arm swings down into the rail (-6 rad/s, the contact ~0.08 rad away) while it
+    slides off the shaft's end at 1 m/s, in the same frame. The base stops the turn, so the
+    part leaves (at the frame's end) without a rate into the rail: a still base and a
+    frictionless horizontal shaft leave it exactly its slide, (1, 0, 0) m/s, and no spin
+    (before, it left at -8.97 rad/s and flew on through the rail). The contact is an event.
+    With ``block_cut: both`` (older recordings, the paper model) the slide is cut at the
+    contact too, and the part is still on the shaft after the frame."""
+    scene, world = _arm_on_a_shaft_over_a_rail({"block_cut": block_cut})
+    for x0, stays in ((0.0, True), (0.19, False)):
+        state = world(x0, 1.2, 1.0, -6.0)
+        after, events = step(scene, CollisionWorld(scene), state,
+                             S.tracker_frame(1, 10**9 // 60, state.base_pose))
+        part = after.parts[0]
+        kinds = [(e.kind, e.cause) for e in events]
+        if stays:  # the same swing on the shaft's middle: blocked, sliding on
+            assert part.mode is Mode.ONBASESLIDE and part.motion.angle_rate == 0.0
+            assert kinds == [("ContactMade", "blocked_by_base")]
+            assert 1.1 < part.motion.angle < 1.2
+        elif block_cut == "blamed":
+            assert part.mode is Mode.INSPACE
+            assert kinds == [("ContactMade", "blocked_by_base"),
+                             ("ModeChanged", "slid_off_base")]
+            assert part.linear_velocity == (1.0, 0.0, 0.0)
+            assert part.angular_velocity == (0.0, 0.0, 0.0)
+        else:  # both motions cut at the contact: still on the shaft this frame
+            assert part.mode is Mode.ONBASESLIDE and part.motion.angle_rate == 0.0
+            assert x0 < part.motion.slide[0] < x0 + 1.0 / 60.0
+
+
 # --- 4. friction never reverses motion -------------------------------------------------------
 
 @S.examples(ci=8, full=300)

@@ -863,7 +863,16 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
                 _place(f, index, Cause.REACHED_FINAL_POSE)
                 return
             if lam >= 1.0:
-                v_rel, w_rel = _relative_rates(body, mate, m, v1, a1, w1)
+                v2, w2 = v1, w1
+                if blocked is not None and physics.block_cut == "blamed":
+                    # Stopped by the base in the frame it slid off (a turn stopped while
+                    # the slide ran off the shaft's end): it leaves without the rate into
+                    # the obstacle, as it would have stayed on (``_stop_at_block``).
+                    stopped = _stop_at_block(m.moved(x1, v1, a1, w1), m, x1, a1,
+                                             blame_slide, blame_turn)  # type: ignore[possibly-undefined]
+                    v2, w2 = stopped.slide_rate, stopped.angle_rate
+                    _blocked_event(f, part.name, blocked[0])
+                v_rel, w_rel = _relative_rates(body, mate, m, v2, a1, w2)
                 _leave(f, index, Cause.SLID_OFF, rel, v_rel, w_rel)
                 return
             # Off the base part-way through the frame: free flight from that instant on,
@@ -883,9 +892,7 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
     new = m.moved(x1, v1, a1, w1)
     if blocked is not None:
         new = _stop_at_block(new, m, x1, a1, blame_slide, blame_turn)  # type: ignore[possibly-undefined]
-        f.events.append(ContactMade(f.inputs.frame, part.name, Cause.BLOCKED.value,
-                                    f.scene.base.name,  # type: ignore[union-attr]
-                                    f.t_prev_ns + int(lam * (f.t_ns - f.t_prev_ns))))  # type: ignore[possibly-undefined]
+        _blocked_event(f, part.name, lam)  # type: ignore[possibly-undefined]
     if passed is not None or (assembly.final_pose is not None
                               and cn.at_final_pose(assembly, rel)):
         _place(f, index, Cause.REACHED_FINAL_POSE)
@@ -903,6 +910,13 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
                                          angular_velocity=sp.ZERO3), cause)
             return
     f.parts[index] = moved
+
+
+def _blocked_event(f: _Frame, name: str, lam: float) -> None:
+    """The base stopped the part at the fraction ``lam`` of the frame."""
+    f.events.append(ContactMade(f.inputs.frame, name, Cause.BLOCKED.value,
+                                f.scene.base.name,  # type: ignore[union-attr]
+                                f.t_prev_ns + int(lam * (f.t_ns - f.t_prev_ns))))
 
 
 def _stop_at_block(new: OnBase, old: OnBase, x1, a1, blame_slide: bool,
