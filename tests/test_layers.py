@@ -3,7 +3,12 @@
 from __future__ import annotations
 
 import ast
+import json
+import subprocess
+import sys
 from pathlib import Path
+
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = ROOT / "vade_replay"
@@ -92,3 +97,38 @@ def test_the_core_is_found():
 def test_the_rules_can_fail():
     tree = ast.parse("import fcl\nopen('x')\n")
     assert "fcl" in _imports(tree)
+
+
+_START = """
+import json, sys
+first = sys.argv[1]
+if first == "command":
+    import vade_replay.cli.replay  # what a console script imports first
+else:
+    import vade_replay.scene
+import trimesh
+from vade_replay.recording import Recording
+from vade_replay.replay import replay
+out = {"scipy_before": "scipy" in sys.modules,
+       "runs": {p: replay(Recording(p)).match for p in sys.argv[2:]}}
+import scipy.spatial
+out["hull_is_scipys"] = trimesh.convex.ConvexHull is scipy.spatial.ConvexHull
+print(json.dumps(out))
+"""
+
+
+@pytest.mark.parametrize("process", ["command", "library"])
+def test_a_command_imports_trimesh_without_scipy_and_replays_the_same(process):
+    """``import trimesh`` imports scipy where it is installed (~0.35 s of a command's
+    start). A command hides it while trimesh imports (vade_replay/scene.py): scipy is not
+    loaded, every golden still replays bit for bit, and scipy itself imports afterwards.
+    A process using the package as a library gets trimesh whole (its scipy functions)."""
+    pytest.importorskip("scipy")
+    goldens = sorted(str(p) for p in (ROOT / "recordings").glob("*.mcap"))
+    done = subprocess.run([sys.executable, "-c", _START, process, *goldens],
+                          capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert done.returncode == 0, done.stderr
+    out = json.loads(done.stdout)
+    assert out["runs"] == {p: True for p in goldens} and len(goldens) >= 10
+    assert out["scipy_before"] is (process == "library")
+    assert out["hull_is_scipys"] is (process == "library")

@@ -11,11 +11,29 @@ from __future__ import annotations
 import io
 import json
 import math
+import sys
 from dataclasses import dataclass, field, fields, replace
 from typing import Final
 
 import numpy as np
-import trimesh
+
+# ``import trimesh`` imports scipy where it is installed (the test and bench extras): ~0.35 s
+# of a command's ~0.75 s start, more than a short golden's whole replay. No trimesh function
+# this package calls needs scipy (a plain install has none, and replays the same bits), so a
+# command (``vade_replay.cli`` imported first, as the console scripts do) imports trimesh with
+# scipy hidden: trimesh's modules that import it optionally do without it (their scipy
+# functions would raise if called). scipy itself stays importable after (the benchmark's
+# references). A process that uses the package as a library, or has imported scipy or trimesh
+# already, imports trimesh as it is. ``tests/test_layers.py`` checks both.
+_WITHOUT_SCIPY = "vade_replay.cli" in sys.modules and "scipy" not in sys.modules \
+    and "trimesh" not in sys.modules
+if _WITHOUT_SCIPY:
+    sys.modules["scipy"] = None  # type: ignore[assignment]  # import scipy: ImportError
+try:
+    import trimesh
+finally:
+    if _WITHOUT_SCIPY:
+        del sys.modules["scipy"]
 
 from . import constraints as cn
 from . import spatial as sp
