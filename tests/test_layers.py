@@ -110,7 +110,8 @@ import trimesh
 from vade_replay.recording import Recording
 from vade_replay.replay import replay
 out = {"scipy_before": "scipy" in sys.modules,
-       "runs": {p: replay(Recording(p)).match for p in sys.argv[2:]}}
+       "runs": {p: replay(Recording(p)).match for p in sys.argv[2:]},
+       "jsonschema": "jsonschema" in sys.modules}
 import scipy.spatial
 out["hull_is_scipys"] = trimesh.convex.ConvexHull is scipy.spatial.ConvexHull
 print(json.dumps(out))
@@ -122,7 +123,8 @@ def test_a_command_imports_trimesh_without_scipy_and_replays_the_same(process):
     """``import trimesh`` imports scipy where it is installed (~0.35 s of a command's
     start). A command hides it while trimesh imports (vade_replay/scene.py): scipy is not
     loaded, every golden still replays bit for bit, and scipy itself imports afterwards.
-    A process using the package as a library gets trimesh whole (its scipy functions)."""
+    A process using the package as a library gets trimesh whole (its scipy functions).
+    Neither imports jsonschema: every golden's session was validated when it was recorded."""
     pytest.importorskip("scipy")
     goldens = sorted(str(p) for p in (ROOT / "recordings").glob("*.mcap"))
     done = subprocess.run([sys.executable, "-c", _START, process, *goldens],
@@ -132,3 +134,4 @@ def test_a_command_imports_trimesh_without_scipy_and_replays_the_same(process):
     assert out["runs"] == {p: True for p in goldens} and len(goldens) >= 10
     assert out["scipy_before"] is (process == "library")
     assert out["hull_is_scipys"] is (process == "library")
+    assert out["jsonschema"] is False

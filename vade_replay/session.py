@@ -13,14 +13,20 @@ from dataclasses import dataclass
 from importlib import metadata as importlib_metadata
 from importlib import resources
 from pathlib import Path
-from typing import Iterator
-
-import jsonschema
+from typing import TYPE_CHECKING, Iterator
 
 from . import inputs
 from .errors import SessionError, VadeError
 from .frames import TrackerFrame
 from .scene import Scene, build_scene
+
+if TYPE_CHECKING:
+    import jsonschema
+
+# jsonschema is imported when a session is validated, not before: a replay of a recording
+# whose session was validated when it was recorded (``validated_digest``) does without it,
+# ~40 ms of a command's start.
+_VALIDATOR_CLASS = "Draft202012Validator"
 
 
 def _no_constants(name: str):
@@ -54,7 +60,7 @@ def validated_digest(raw: bytes) -> str:
         # The validator too: another jsonschema might judge the same bytes otherwise.
         schema = json.dumps([load_schema("session.schema.json"),
                              importlib_metadata.version("jsonschema"),
-                             type(_validator()).__name__], sort_keys=True)
+                             _VALIDATOR_CLASS], sort_keys=True)
         _SCHEMA_DIGEST = hashlib.sha256(schema.encode()).hexdigest()
     return hashlib.sha256(_SCHEMA_DIGEST.encode() + b"\n" + raw).hexdigest()
 
@@ -62,7 +68,8 @@ def validated_digest(raw: bytes) -> str:
 def _validator() -> jsonschema.Draft202012Validator:
     global _VALIDATOR
     if _VALIDATOR is None:
-        _VALIDATOR = jsonschema.Draft202012Validator(load_schema("session.schema.json"))
+        import jsonschema
+        _VALIDATOR = getattr(jsonschema, _VALIDATOR_CLASS)(load_schema("session.schema.json"))
     return _VALIDATOR
 
 
@@ -77,6 +84,7 @@ def validate(doc: object, *, file: str) -> None:
     """Raise ``SessionError`` naming the first bad field."""
     errors = sorted(_validator().iter_errors(doc), key=lambda e: (list(e.absolute_path), e.message))
     if errors:
+        import jsonschema
         error = jsonschema.exceptions.best_match(errors)
         field = _path(error)
         if error.validator == "additionalProperties" and isinstance(error.instance, dict):
