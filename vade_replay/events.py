@@ -45,7 +45,8 @@ class ModeChanged(Event):
 
 @dataclass(frozen=True, slots=True)
 class PartGrabbed(Event):
-    """A hand closed on a part (cause ``grabbed``, or ``caught`` in flight)."""
+    """A hand closed on a part (``grabbed``, or ``caught`` in flight), or a tool attached
+    it (``attached_to_tool``); ``hand`` is the hand's or the tool's device."""
 
     hand: str
 
@@ -55,7 +56,8 @@ class PartGrabbed(Event):
 
 @dataclass(frozen=True, slots=True)
 class GrabRefused(Event):
-    """A hand closed but took nothing: nothing in reach, the base part, or too heavy.
+    """A hand or a tool closed but took nothing: nothing in reach, or too heavy for one
+    hand or for the tool.
 
     ``part`` is the nearest candidate, or empty when nothing is in reach.
     """
@@ -69,7 +71,8 @@ class GrabRefused(Event):
 
 @dataclass(frozen=True, slots=True)
 class PartReleased(Event):
-    """A hand opened and let a part go with the estimated velocities (world, m/s, rad/s)."""
+    """A hand or a tool opened and let a part go with the estimated velocities (world,
+    m/s, rad/s)."""
 
     hand: str
     linear_velocity: Vec3

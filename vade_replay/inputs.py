@@ -16,9 +16,10 @@ import numpy as np
 from . import spatial as sp
 from .errors import SessionError
 from .frames import MAX_ABS_POSITION_M, DeviceSample, TrackerFrame
-from .scene import UNIT_TO_M
+from .scene import HAND_DEVICES, UNIT_TO_M
 
-DEVICES = ("head", "left_hand", "right_hand")
+# The devices of a session without tools; a session's tools add their names (``devices``).
+DEVICES = HAND_DEVICES
 TIME_TO_NS = {"s": 10**9, "ms": 10**6, "us": 10**3, "ns": 1}
 CSV_COLUMNS = ("time", "device", "x", "y", "z", "q0", "q1", "q2", "q3", "grip")
 
@@ -68,8 +69,19 @@ def _sample(keys: list[tuple], t: float, has_grip: bool) -> DeviceSample:
     return DeviceSample(p, q, g if has_grip else None)
 
 
-def from_keyframes(tracker: dict, units: str, *, file: str) -> Iterator[TrackerFrame]:
+def devices(doc: dict) -> tuple[str, ...]:
+    """The devices a session's tracker stream may hold: the head, the hands, its tools."""
+    return DEVICES + tuple(tool["name"] for tool in doc.get("tools", []))
+
+
+def from_keyframes(tracker: dict, units: str, *, file: str,
+                   known: tuple[str, ...] = DEVICES) -> Iterator[TrackerFrame]:
     """Resample keyframes (linear position, slerp rotation, held grip) at ``rate_hz``."""
+    for name in sorted(tracker["devices"]):
+        if name not in known:
+            raise SessionError(f"unknown device {name!r} (use {', '.join(known)}, or declare "
+                               "a tool of that name under tools)", file=file,
+                               field=f"tracker.devices.{name}")
     factor = UNIT_TO_M[units]
     rate = int(tracker.get("rate_hz", 60))
     count = int(math.floor(float(tracker["duration_s"]) * rate + 1e-9)) + 1
@@ -104,7 +116,8 @@ def _parse_time_ns(text: str, unit: str) -> int:
 
 
 def _csv_row(row: list[str], col: dict[str, int], line_no: int, *, file: str, factor: float,
-             time_unit: str, quaternion_order: str) -> tuple[int, str, DeviceSample]:
+             time_unit: str, quaternion_order: str,
+             known: tuple[str, ...]) -> tuple[int, str, DeviceSample]:
     """One row of a tracker log: time, device and its sample; a bad row names its line."""
     where = f"line {line_no}"
     try:
@@ -118,9 +131,10 @@ def _csv_row(row: list[str], col: dict[str, int], line_no: int, *, file: str, fa
     if not 0 <= t_ns < 2**63:
         raise SessionError("time must be at least 0 and below 2^63 ns (292 years)", file=file,
                            field=f"{where}: time")
-    if device not in DEVICES:
-        raise SessionError(f"unknown device {device!r} (use {', '.join(DEVICES)})",
-                           file=file, field=f"{where}: device")
+    if device not in known:
+        raise SessionError(f"unknown device {device!r} (use {', '.join(known)}, or declare "
+                           "a tool of that name under tools)", file=file,
+                           field=f"{where}: device")
     if not all(math.isfinite(v) for v in (*position, *q)):
         raise SessionError("non-finite number", file=file, field=where)
     if any(abs(v) > MAX_ABS_POSITION_M for v in position):
@@ -144,7 +158,7 @@ def _csv_row(row: list[str], col: dict[str, int], line_no: int, *, file: str, fa
 
 
 def from_csv(data: bytes, *, file: str, units: str, time_unit: str,
-             quaternion_order: str) -> Iterator[TrackerFrame]:
+             quaternion_order: str, known: tuple[str, ...] = DEVICES) -> Iterator[TrackerFrame]:
     """Frames from a tracker log: one row per device sample, rows in time order.
 
     Rows with the same time form one frame; a device seen twice at the same time starts a
@@ -174,7 +188,7 @@ def from_csv(data: bytes, *, file: str, units: str, time_unit: str,
         try:
             t_ns, device, sample = _csv_row(row, col, line_no, file=file, factor=factor,
                                             time_unit=time_unit,
-                                            quaternion_order=quaternion_order)
+                                            quaternion_order=quaternion_order, known=known)
             if current_t is not None and t_ns < current_t:
                 raise SessionError("time goes backwards", file=file,
                                    field=f"line {line_no}: time")

@@ -72,14 +72,18 @@ _allow([Mode.ONBASESLIDE], Mode.ONBASESTATIC, Cause.BLOCKED, Cause.FRICTION_HELD
        Cause.NUMERICAL_FAULT)
 _allow([Mode.ONBASESTATIC], Mode.ONBASESLIDE, Cause.FRICTION_BROKEN)
 _allow(_ONBASE, Mode.INSPACE, Cause.SLID_OFF, Cause.LIFTED_OFF)
-_allow([Mode.INHAND], Mode.ONTOOL, Cause.ATTACHED_TO_TOOL)
+# A tool attaches what a hand could grab, and a part in a hand (handed over to it). It lets
+# go as a hand does: onto the table, the base, a constraint or the final pose; in free
+# space the part is detached and flies.
+_allow([*_GRABBABLE, Mode.INHAND], Mode.ONTOOL, Cause.ATTACHED_TO_TOOL)
 _allow([Mode.ONTOOL], Mode.INSPACE, Cause.DETACHED_FROM_TOOL)
+_allow([Mode.ONTOOL], Mode.STATIC, Cause.RELEASED_ON_TABLE)
+_allow([Mode.ONTOOL], Mode.ONBASESTATIC, Cause.RELEASED_ON_BASE_PART, Cause.RELEASED_ON_BASE)
+_allow([Mode.ONTOOL], Mode.ONBASESLIDE, Cause.RELEASED_ON_BASE)
+_allow([Mode.ONTOOL], Mode.PLACED, Cause.RELEASED_AT_FINAL_POSE)
 
 # Transitions in the table whose dynamics are not built yet: asking for them is refused.
-NOT_IMPLEMENTED: frozenset[tuple[Mode, Mode]] = frozenset({
-    (Mode.INHAND, Mode.ONTOOL),
-    (Mode.ONTOOL, Mode.INSPACE),
-})
+NOT_IMPLEMENTED: frozenset[tuple[Mode, Mode]] = frozenset()
 
 
 def check_transition(source: Mode, target: Mode, cause: Cause, *, part: str = "",
@@ -93,4 +97,4 @@ def check_transition(source: Mode, target: Mode, cause: Cause, *, part: str = ""
     if (source, target) in NOT_IMPLEMENTED:
         raise TransitionRefused(
             f"transition {source.value} -> {target.value} of part {part!r} is not implemented "
-            "yet (tools)", frame=frame)
+            "yet", frame=frame)

@@ -188,6 +188,20 @@ class Body:
     assembly: cn.Assembly | None = None  # constraints with the base part (parts only)
 
 
+# Devices of the tracker stream that are not tools.
+HAND_DEVICES = ("head", "left_hand", "right_hand")
+
+
+@dataclass(frozen=True)
+class Tool:
+    """A tool that lifts parts too heavy for a hand (a hoist's hook, tongs): a tracked device
+    of its own name, whose grip attaches the part nearest it (ONTOOL) and detaches it."""
+
+    name: str              # its device in the tracker stream
+    max_mass_kg: float     # the heaviest part it lifts
+    grab_radius: float     # m: how near its device a part's bounding box must be
+
+
 @dataclass(frozen=True, eq=False)
 class Scene:
     """Parts, base part, environment and physics of a session; never changes while it runs."""
@@ -200,9 +214,16 @@ class Scene:
     hand_from_base: sp.Pose
     environment: tuple[Body, ...]           # sorted by name
     part_index: dict = field(default_factory=dict)
+    tools: tuple[Tool, ...] = ()            # sorted by name
 
     def part(self, name: str) -> Body:
         return self.parts[self.part_index[name]]
+
+    def tool(self, name: str) -> Tool | None:
+        for tool in self.tools:
+            if tool.name == name:
+                return tool
+        return None
 
 
 def _vec(values, factor: float = 1.0) -> sp.Vec3:
@@ -555,4 +576,20 @@ def build_scene(session: dict, files: dict[str, bytes], *, file: str = "<session
     parts = tuple(with_assembly)
     return Scene(name=session["name"], units=units, physics=physics, parts=parts, base=base,
                  hand_from_base=hand_from_base, environment=environment,
-                 part_index={b.name: i for i, b in enumerate(parts)})
+                 part_index={b.name: i for i, b in enumerate(parts)},
+                 tools=_tools(session.get("tools", []), physics, f, file=file))
+
+
+def _tools(docs: list, physics: Physics, length_factor: float, *, file: str) -> tuple[Tool, ...]:
+    """The session's tools, sorted by name; each name is a device of the tracker stream."""
+    tools: list[Tool] = []
+    for i, doc in enumerate(docs):
+        name = doc["name"]
+        if name in HAND_DEVICES or any(t.name == name for t in tools):
+            raise SessionError(f"tool name {name!r} is taken (by another tool or one of "
+                               f"{', '.join(HAND_DEVICES)})", file=file, field=f"tools[{i}].name")
+        radius = doc.get("grab_radius")
+        tools.append(Tool(name, float(doc["max_mass_kg"]),
+                          physics.grab_radius if radius is None
+                          else float(radius) * length_factor))
+    return tuple(sorted(tools, key=lambda t: t.name))

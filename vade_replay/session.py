@@ -159,8 +159,10 @@ class Session:
             return inputs.from_csv(self.files[name], file=name,
                                    units=tracker.get("csv_units", units),
                                    time_unit=tracker.get("csv_time_unit", "s"),
-                                   quaternion_order=tracker["csv_quaternion_order"])
-        return inputs.from_keyframes(tracker, units, file=self.source)
+                                   quaternion_order=tracker["csv_quaternion_order"],
+                                   known=inputs.devices(self.doc))
+        return inputs.from_keyframes(tracker, units, file=self.source,
+                                     known=inputs.devices(self.doc))
 
 
 def parse(raw: bytes, files: dict[str, bytes], *, source: str,

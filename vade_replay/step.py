@@ -28,12 +28,16 @@ RIGHT, LEFT = "right_hand", "left_hand"
 # ``EnumType.__getattr__`` (~700 instructions, dozens a frame); a Final name of this
 # module is a C static.
 INHAND: Final = Mode.INHAND
+ONTOOL: Final = Mode.ONTOOL
 ONBASESLIDE: Final = Mode.ONBASESLIDE
 ONBASESTATIC: Final = Mode.ONBASESTATIC
 INSPACE: Final = Mode.INSPACE
 STATIC: Final = Mode.STATIC
 PLACED: Final = Mode.PLACED
 _GRABBABLE = (STATIC, INSPACE, ONBASESLIDE, ONBASESTATIC, PLACED)
+# What a tool attaches: what a hand could grab, and a part in a hand (handed over).
+_TOOL_GRABBABLE = (*_GRABBABLE, INHAND)
+_HANDS: Final = (LEFT, RIGHT)
 _CA_MAX_ITERATIONS: Final = 10_000
 _MIN_SUPPORT_COS: Final = 0.1
 
@@ -94,8 +98,8 @@ def initial_state(scene: Scene, *, time_ns: int = 0) -> WorldState:
     parts = tuple(PartState(body.name, body.initial_mode, body.initial_pose)
                   for body in scene.parts)
     base_pose = scene.base.initial_pose if scene.base else None
-    return WorldState(-1, time_ns, parts, base_pose, ((LEFT, False), (RIGHT, False)),
-                      _awake(parts), parts)
+    grips = tuple(sorted((name, False) for name in (*_HANDS, *(t.name for t in scene.tools))))
+    return WorldState(-1, time_ns, parts, base_pose, grips, _awake(parts), parts)
 
 
 def _awake(parts) -> tuple[int, ...]:
@@ -122,9 +126,10 @@ def step(scene: Scene, collision: CollisionWorld, state: WorldState,
     _releases(f, state)
     _grabs(f, state)
     parts = tuple(f.parts)
-    grips = f.grips  # _read_hands sets both hands, in sorted order (LEFT < RIGHT)
+    grips = f.grips  # _read_hands sets both hands (LEFT < RIGHT) and every tool
     new_state = WorldState(inputs.frame, inputs.time_ns, parts, f.base_pose,
-                           ((LEFT, grips[LEFT]), (RIGHT, grips[RIGHT])),
+                           ((LEFT, grips[LEFT]), (RIGHT, grips[RIGHT])) if not scene.tools
+                           else tuple(sorted(grips.items())),
                            _awake(parts) if f.modes_changed else awake, parts)
     return new_state, tuple(f.events)
 
@@ -132,8 +137,11 @@ def step(scene: Scene, collision: CollisionWorld, state: WorldState,
 # --- stages ---------------------------------------------------------------------------
 
 def _read_hands(f: _Frame, state: WorldState) -> None:
+    """The hands' and the tools' poses and grips (a device without a sample this frame keeps
+    its grip and has no pose)."""
     previous = dict(state.grips)
-    for hand in (LEFT, RIGHT):
+    tools = f.scene.tools
+    for hand in _HANDS if not tools else (*_HANDS, *(t.name for t in tools)):
         sample = f.inputs.device(hand)
         if sample is None:
             f.grips[hand] = previous.get(hand, False)
@@ -153,7 +161,7 @@ def _follow_hands(f: _Frame) -> None:
     keep = max(physics.release_window, 2)
     for index in f.awake:
         part = f.parts[index]
-        if part.mode is not INHAND:
+        if part.mode is not INHAND and part.mode is not ONTOOL:
             continue
         held: Held = part.motion  # type: ignore[assignment]
         hand = f.hands.get(held.hand)
@@ -181,7 +189,8 @@ def _releases(f: _Frame, state: WorldState) -> None:
             continue
         for index in f.awake:
             part = f.parts[index]
-            if part.mode is INHAND and cast(Held, part.motion).hand == hand:
+            if (part.mode is INHAND or part.mode is ONTOOL) \
+                    and cast(Held, part.motion).hand == hand:
                 _release(f, index, hand)
 
 
@@ -210,46 +219,59 @@ def _distance_to_box(body: Body, pose: sp.Pose, point: sp.Vec3) -> float:
 
 
 def _grab(f: _Frame, hand: str) -> None:
+    """A hand (or a tool: ``hand`` is its device) closed: it takes the part nearest it."""
     physics = f.scene.physics
+    tool = f.scene.tool(hand) if f.scene.tools else None
+    radius = physics.grab_radius if tool is None else tool.grab_radius
+    grabbable = _GRABBABLE if tool is None else _TOOL_GRABBABLE
     hand_pose = f.hands[hand]
     frame = f.inputs.frame
     candidates = []
     hx, hy, hz = hand_pose.position
     stats = f.collision.stats
     for index, part in enumerate(f.parts):
-        if part.mode not in _GRABBABLE:
+        if part.mode not in grabbable:
             continue
         # Bounding sphere about the part frame's origin first: most parts are far away.
-        reach = f.scene.parts[index].reach_from_origin + physics.grab_radius
+        reach = f.scene.parts[index].reach_from_origin + radius
         px, py, pz = part.pose.position
         stats["bounding_tests"] += 1
         if (px - hx) ** 2 + (py - hy) ** 2 + (pz - hz) ** 2 > reach * reach:
             continue
         d = _distance_to_box(f.scene.parts[index], part.pose, hand_pose.position)
-        if d <= physics.grab_radius:
+        if d <= radius:
             candidates.append((d, part.name, index))
     if not candidates:
         f.events.append(GrabRefused(frame, "", "nothing_in_reach", hand))
         return
     _, name, index = min(candidates)
     body = f.scene.parts[index]
-    if body.mass_kg > physics.one_hand_max_mass_kg:
+    if tool is None and body.mass_kg > physics.one_hand_max_mass_kg:
         f.events.append(GrabRefused(frame, name, "too_heavy_for_one_hand", hand))
         return
+    if tool is not None and body.mass_kg > tool.max_mass_kg:
+        f.events.append(GrabRefused(frame, name, "too_heavy_for_tool", hand))
+        return
     part = f.parts[index]
-    cause = Cause.CAUGHT if part.mode is INSPACE else Cause.GRABBED
+    if tool is not None:
+        mode, cause = ONTOOL, Cause.ATTACHED_TO_TOOL
+    else:
+        mode, cause = INHAND, Cause.CAUGHT if part.mode is INSPACE else Cause.GRABBED
     cm = part.pose.apply(body.center_of_mass)
     held = Held(hand, hand_pose.inverse().compose(part.pose), ((f.t_ns, cm, part.pose.rotation),))
-    f.change_mode(index, PartState(name, INHAND, part.pose, sp.ZERO3, sp.ZERO3, held), cause)
+    f.change_mode(index, PartState(name, mode, part.pose, sp.ZERO3, sp.ZERO3, held), cause)
     f.events.append(PartGrabbed(frame, name, cause.value, hand))
 
 
 def _release(f: _Frame, index: int, hand: str) -> None:
+    """A hand (or a tool) opened: the part it held goes onto the base, a constraint or its
+    final pose, onto the table, or into free flight (from a tool: detached)."""
     part = f.parts[index]
     body = f.scene.parts[index]
     physics = f.scene.physics
     v, w = part.linear_velocity, part.angular_velocity
     frame = f.inputs.frame
+    flies = Cause.RELEASED if part.mode is INHAND else Cause.DETACHED_FROM_TOOL
     if body.assembly is not None and f.base_pose is not None \
             and _release_on_base(f, index, hand):
         return
@@ -267,13 +289,12 @@ def _release(f: _Frame, index: int, hand: str) -> None:
             # Touching a face that does not hold it up (underneath, a wall): it flies, not
             # into the base, which it may graze until they separate.
             v = _without_push_into_base(f, normal, v)
-            f.events.append(PartReleased(frame, part.name, Cause.RELEASED.value, hand, v, w))
+            f.events.append(PartReleased(frame, part.name, flies.value, hand, v, w))
             flight = free.start(t_ns=f.t_ns, cm=cm, velocity=v, omega_world=w,
                                 world_from_part=part.pose,
                                 part_from_principal=body.part_from_principal,
                                 principal_moments=body.principal_moments, base_clear=False)
-            f.change_mode(index, PartState(part.name, INSPACE, part.pose, v, w, flight),
-                          Cause.RELEASED)
+            f.change_mode(index, PartState(part.name, INSPACE, part.pose, v, w, flight), flies)
             return
     near = f.collision.environment_near(cm, body.radius_about_cm + physics.contact_tolerance)
     if near:
@@ -284,12 +305,11 @@ def _release(f: _Frame, index: int, hand: str) -> None:
             f.change_mode(index, PartState(part.name, STATIC, part.pose),
                           Cause.RELEASED_ON_TABLE)
             return
-    f.events.append(PartReleased(frame, part.name, Cause.RELEASED.value, hand, v, w))
+    f.events.append(PartReleased(frame, part.name, flies.value, hand, v, w))
     flight = free.start(t_ns=f.t_ns, cm=cm, velocity=v, omega_world=w, world_from_part=part.pose,
                         part_from_principal=body.part_from_principal,
                         principal_moments=body.principal_moments)
-    f.change_mode(index, PartState(part.name, INSPACE, part.pose, v, w, flight),
-                  Cause.RELEASED)
+    f.change_mode(index, PartState(part.name, INSPACE, part.pose, v, w, flight), flies)
 
 
 # --- free flight and contact with the environment -------------------------------------
