@@ -107,31 +107,62 @@ if first == "command":
 else:
     import vade_replay.scene
 import trimesh
+from vade_replay import session
 from vade_replay.recording import Recording
 from vade_replay.replay import replay
 out = {"scipy_before": "scipy" in sys.modules,
-       "runs": {p: replay(Recording(p)).match for p in sys.argv[2:]},
+       "runs": {p: replay(Recording(p)).match for p in sys.argv[3:]},
        "jsonschema": "jsonschema" in sys.modules}
+scene = session.load(sys.argv[2]).build_scene()  # a mesh file of each type
+out["meshes"] = [repr((b.name, b.mass_kg, b.center_of_mass, b.principal_moments,
+                       b.part_from_principal, b.bbox_min, b.bbox_max)) for b in scene.parts]
 import scipy.spatial
 out["hull_is_scipys"] = trimesh.convex.ConvexHull is scipy.spatial.ConvexHull
 print(json.dumps(out))
 """
 
 
-@pytest.mark.parametrize("process", ["command", "library"])
-def test_a_command_imports_trimesh_without_scipy_and_replays_the_same(process):
+def _mesh_session(folder: Path) -> Path:
+    """A session whose parts are mesh files of every type the README lists but GLTF."""
+    import trimesh
+    from conftest import session_doc
+    shapes = {"stl": trimesh.creation.cylinder(radius=0.02, height=0.06, sections=24),
+              "obj": trimesh.creation.box(extents=[0.03, 0.04, 0.05]),
+              "ply": trimesh.creation.icosphere(subdivisions=2, radius=0.03),
+              "off": trimesh.creation.annulus(r_min=0.01, r_max=0.03, height=0.02),
+              "glb": trimesh.creation.capsule(height=0.05, radius=0.01)}
+    parts = []
+    for i, (kind, mesh) in enumerate(sorted(shapes.items())):
+        mesh.export(folder / f"part.{kind}")
+        parts.append({"name": f"{kind}_part", "shape": {"type": "mesh", "file": f"part.{kind}"},
+                      "density": 2700, "pose": {"position": [0.1 * i, 0.0, 0.8]}})
+    doc = session_doc(parts=parts, right_hand=[{"t": 0.0, "position": [0, 0, 1]}],
+                      duration_s=0.1)
+    path = folder / "meshes.json"
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def test_a_command_imports_trimesh_without_scipy_and_replays_the_same(tmp_path):
     """``import trimesh`` imports scipy where it is installed (~0.35 s of a command's
     start). A command hides it while trimesh imports (vade_replay/scene.py): scipy is not
     loaded, every golden still replays bit for bit, and scipy itself imports afterwards.
     A process using the package as a library gets trimesh whole (its scipy functions).
-    Neither imports jsonschema: every golden's session was validated when it was recorded."""
+    Neither imports jsonschema: every golden's session was validated when it was recorded.
+    Mesh files of each type (STL, OBJ, PLY, OFF, GLB) give the same bodies either way."""
     pytest.importorskip("scipy")
     goldens = sorted(str(p) for p in (ROOT / "recordings").glob("*.mcap"))
-    done = subprocess.run([sys.executable, "-c", _START, process, *goldens],
-                          capture_output=True, text=True, timeout=300, cwd=ROOT)
-    assert done.returncode == 0, done.stderr
-    out = json.loads(done.stdout)
-    assert out["runs"] == {p: True for p in goldens} and len(goldens) >= 10
-    assert out["scipy_before"] is (process == "library")
-    assert out["hull_is_scipys"] is (process == "library")
-    assert out["jsonschema"] is False
+    meshes = _mesh_session(tmp_path)
+    out = {}
+    for process in ("command", "library"):
+        done = subprocess.run([sys.executable, "-c", _START, process, str(meshes), *goldens],
+                              capture_output=True, text=True, timeout=300, cwd=ROOT)
+        assert done.returncode == 0, done.stderr
+        out[process] = json.loads(done.stdout)
+        assert out[process]["runs"] == {p: True for p in goldens} and len(goldens) >= 10
+        assert out[process]["scipy_before"] is (process == "library")
+        assert out[process]["hull_is_scipys"] is (process == "library")
+        assert out[process]["jsonschema"] is False
+    # The mesh files give the same bodies to the last bit either way.
+    assert out["command"]["meshes"] == out["library"]["meshes"]
+    assert len(out["command"]["meshes"]) == 5

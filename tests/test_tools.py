@@ -104,7 +104,8 @@ def test_a_hand_hands_a_part_over_to_a_tool_and_cannot_take_it_back():
             {"t": 0.1, "grip": True},
             {"t": 0.5, "position": [0.0, 0.0, 1.0]},
             {"t": 0.8, "grip": False},  # the tool has it by now: nothing to let go
-            {"t": 1.0, "grip": True}]   # closes on the part on the tool: refused
+            {"t": 0.9, "position": [0.0, 0.0, 1.1]},
+            {"t": 1.0, "grip": True}]   # on the part on the tool (inside its box): refused
     hook = [{"t": 0.0, "position": [0.3, 0.0, 1.2], "grip": False},
             {"t": 0.5, "position": [0.0, 0.0, 1.05]},
             {"t": 0.6, "grip": True},
@@ -113,11 +114,33 @@ def test_a_hand_hands_a_part_over_to_a_tool_and_cannot_take_it_back():
     assert [t[1:] for t in _transitions(records)] == [
         ("STATIC", "INHAND", "grabbed"), ("INHAND", "ONTOOL", "attached_to_tool")]
     assert not [e for r in records for e in r.events if e.kind == "PartReleased"]
-    refused = [(e.cause, e.hand) for r in records for e in r.events if e.kind == "GrabRefused"]
-    assert refused == [("nothing_in_reach", "right_hand")]
+    refused = [(r.frame, e.part, e.cause, e.hand) for r in records for e in r.events
+               if e.kind == "GrabRefused"]
+    assert refused == [(60, "peg", "held_by_tool", "right_hand")]
+    at = records[60]
+    hand = at.inputs.device("right_hand").position
+    assert abs(at.parts[0].position[2] - hand[2]) < 0.04  # the hand is at the peg
     last = records[-1]
     assert last.parts[0].mode == "ONTOOL"
     assert last.parts[0].position[2] == pytest.approx(1.25 - (1.05 - 1.0) - 0.01, abs=1e-9)
+
+
+@pytest.mark.parametrize("tool", ["atool", "ztool"])  # named before and after right_hand
+def test_a_tool_and_a_hand_closing_on_a_part_in_one_frame_give_it_to_the_tool(tool):
+    """Within a frame the tools act before the hands, whatever they are called."""
+    peg = {"name": "peg", "shape": {"type": "box", "size": [0.04, 0.04, 0.08]},
+           "density": 2700, "pose": {"position": [0.0, 0.0, 0.78]}}
+    hand = [{"t": 0.0, "position": [0.0, 0.01, 0.8], "grip": False}, {"t": 0.2, "grip": True}]
+    hook = [{"t": 0.0, "position": [0.0, -0.01, 0.8], "grip": False}, {"t": 0.2, "grip": True}]
+    doc = _doc(parts=[peg], right_hand=hand, hook=hook, duration_s=0.5)
+    doc["tools"][0]["name"] = tool
+    doc["tracker"]["devices"][tool] = doc["tracker"]["devices"].pop("hook")
+    records = run_records(doc)
+    assert [t[1:] for t in _transitions(records)] == [("STATIC", "ONTOOL", "attached_to_tool")]
+    events = [(e.kind, e.cause, e.hand) for r in records for e in r.events
+              if e.kind in ("PartGrabbed", "GrabRefused")]
+    assert events == [("PartGrabbed", "attached_to_tool", tool),
+                      ("GrabRefused", "held_by_tool", "right_hand")]
 
 
 def test_the_hoist_golden_places_a_heavy_ring_with_a_tool():
@@ -140,14 +163,15 @@ def test_a_device_that_is_neither_a_hand_nor_a_tool_is_named():
     assert info.value.field == "tracker.devices.crane" and "tools" in str(info.value)
 
 
-def test_a_tool_cannot_take_a_hands_name(tmp_path):
+@pytest.mark.parametrize("name", ["right_hand", "head", "crate", "table", "hook"])
+def test_a_tool_cannot_take_a_name_in_use(tmp_path, name):
     doc = _doc()
-    doc["tools"] = [{"name": "right_hand", "max_mass_kg": 30.0}]
+    doc["tools"] = [{"name": "hook", "max_mass_kg": 30.0}, {"name": name, "max_mass_kg": 5.0}]
     path = tmp_path / "bad.json"
     path.write_text(json.dumps(doc))
     result = run_cli("vade-record", str(path), "-o", str(tmp_path / "bad.mcap"))
     assert result.returncode == 2
-    assert "tools[0].name" in result.stderr and "taken" in result.stderr
+    assert "tools[1].name" in result.stderr and "taken" in result.stderr
 
 
 def test_a_tool_in_a_csv_tracker_log():

@@ -66,7 +66,7 @@ class SessionAnalysis:
 
     def _close(self, name: str, mode: str, since: int, until: int) -> None:
         times = self.parts[name].time_in_state_s
-        times[mode] = times.get(mode, 0.0) + (until - since) * 1e-9
+        times[mode] = times.get(mode, 0.0) + (until - since) / 1e9
 
     def _event(self, event, t: int) -> None:
         if event.kind == "GrabRefused":
@@ -90,7 +90,7 @@ class SessionAnalysis:
             elif event.cause == "blocked_by_base":
                 stats.blocked += 1
             if event.to_mode == "PLACED" and stats.placed_at_s is None:
-                stats.placed_at_s = (t - (self._first_ns or 0)) * 1e-9
+                stats.placed_at_s = (t - (self._first_ns or 0)) / 1e9
 
     def result(self) -> dict:
         """Per-part statistics, with every state's time closed at the last frame."""
@@ -99,6 +99,6 @@ class SessionAnalysis:
             times = dict(stats.time_in_state_s)
             mode, since = self._mode.get(name, (None, 0))
             if mode is not None and self._last_ns is not None:
-                times[mode] = times.get(mode, 0.0) + (self._last_ns - since) * 1e-9
+                times[mode] = times.get(mode, 0.0) + (self._last_ns - since) / 1e9
             out[name] = {**stats.as_dict(), "time_in_state_s": dict(sorted(times.items()))}
         return {"parts": out, "refused_grabs": dict(sorted(self.refused_grabs.items()))}

@@ -89,7 +89,7 @@ class RunSummary:
     def count(self, record: FrameRecord, first_time_ns: int) -> None:
         self.analysis.add(record)
         self.frames += 1
-        self.duration_s = (record.time_ns - first_time_ns) * 1e-9
+        self.duration_s = (record.time_ns - first_time_ns) / 1e9
         for event in record.events:
             self.events += 1
             if event.kind == "ModeChanged":

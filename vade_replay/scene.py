@@ -24,7 +24,10 @@ import numpy as np
 # scipy hidden: trimesh's modules that import it optionally do without it (their scipy
 # functions would raise if called). scipy itself stays importable after (the benchmark's
 # references). A process that uses the package as a library, or has imported scipy or trimesh
-# already, imports trimesh as it is. ``tests/test_layers.py`` checks both.
+# already, imports trimesh as it is. ``tests/test_layers.py`` checks both, with every golden
+# and a mesh file of each type. So, in this module: no trimesh call that needs scipy or a
+# graph engine (``convex_hull``, ``split``, ``body_count``, ``fix_normals``, ``validate=True``,
+# nearest-point queries...): it would work in the tests and fail in the commands.
 _WITHOUT_SCIPY = "vade_replay.cli" in sys.modules and "scipy" not in sys.modules \
     and "trimesh" not in sys.modules
 if _WITHOUT_SCIPY:
@@ -577,16 +580,22 @@ def build_scene(session: dict, files: dict[str, bytes], *, file: str = "<session
     return Scene(name=session["name"], units=units, physics=physics, parts=parts, base=base,
                  hand_from_base=hand_from_base, environment=environment,
                  part_index={b.name: i for i, b in enumerate(parts)},
-                 tools=_tools(session.get("tools", []), physics, f, file=file))
+                 tools=_tools(session.get("tools", []), physics, f, file=file,
+                              taken={b.name for b in (*parts, *environment)}
+                              | ({base.name} if base is not None else set())))
 
 
-def _tools(docs: list, physics: Physics, length_factor: float, *, file: str) -> tuple[Tool, ...]:
-    """The session's tools, sorted by name; each name is a device of the tracker stream."""
+def _tools(docs: list, physics: Physics, length_factor: float, *, file: str,
+           taken: set[str]) -> tuple[Tool, ...]:
+    """The session's tools, sorted by name; each name is a device of the tracker stream, and
+    none is the name of a hand, the head, another tool or a body (``taken``): an event's
+    ``hand`` and ``part`` would be ambiguous."""
     tools: list[Tool] = []
     for i, doc in enumerate(docs):
         name = doc["name"]
-        if name in HAND_DEVICES or any(t.name == name for t in tools):
-            raise SessionError(f"tool name {name!r} is taken (by another tool or one of "
+        if name in HAND_DEVICES or name in taken or any(t.name == name for t in tools):
+            raise SessionError(f"tool name {name!r} is taken (by another tool, a part, the "
+                               f"base, an environment object, or one of "
                                f"{', '.join(HAND_DEVICES)})", file=file, field=f"tools[{i}].name")
         radius = doc.get("grab_radius")
         tools.append(Tool(name, float(doc["max_mass_kg"]),

@@ -141,7 +141,7 @@ def _read_hands(f: _Frame, state: WorldState) -> None:
     its grip and has no pose)."""
     previous = dict(state.grips)
     tools = f.scene.tools
-    for hand in _HANDS if not tools else (*_HANDS, *(t.name for t in tools)):
+    for hand in _grip_devices(f):
         sample = f.inputs.device(hand)
         if sample is None:
             f.grips[hand] = previous.get(hand, False)
@@ -182,9 +182,17 @@ def _move_free_parts(f: _Frame) -> None:
             _fly(f, index)
 
 
+def _grip_devices(f: _Frame) -> tuple[str, ...]:
+    """The devices with a grip, in the order they act within a frame: the tools (by name),
+    then the hands. An order by role, not by name, so that renaming a tool changes nothing:
+    a tool and a hand closing on one part in the same frame give it to the tool."""
+    tools = f.scene.tools
+    return _HANDS if not tools else (*(t.name for t in tools), *_HANDS)
+
+
 def _releases(f: _Frame, state: WorldState) -> None:
     previous = dict(state.grips)
-    for hand in sorted(f.grips):
+    for hand in _grip_devices(f):
         if not (previous.get(hand, False) and not f.grips[hand]):
             continue
         for index in f.awake:
@@ -196,7 +204,7 @@ def _releases(f: _Frame, state: WorldState) -> None:
 
 def _grabs(f: _Frame, state: WorldState) -> None:
     previous = dict(state.grips)
-    for hand in sorted(f.grips):
+    for hand in _grip_devices(f):
         if previous.get(hand, False) or not f.grips[hand] or hand not in f.hands:
             continue
         # The left hand holds the base part; it grabs only in scenes without one.
@@ -227,10 +235,12 @@ def _grab(f: _Frame, hand: str) -> None:
     hand_pose = f.hands[hand]
     frame = f.inputs.frame
     candidates = []
+    on_tool = ""  # the nearest part in reach that a tool holds, if any
+    on_tool_d = math.inf
     hx, hy, hz = hand_pose.position
     stats = f.collision.stats
     for index, part in enumerate(f.parts):
-        if part.mode not in grabbable:
+        if part.mode not in grabbable and part.mode is not ONTOOL:
             continue
         # Bounding sphere about the part frame's origin first: most parts are far away.
         reach = f.scene.parts[index].reach_from_origin + radius
@@ -240,9 +250,16 @@ def _grab(f: _Frame, hand: str) -> None:
             continue
         d = _distance_to_box(f.scene.parts[index], part.pose, hand_pose.position)
         if d <= radius:
-            candidates.append((d, part.name, index))
+            if part.mode is ONTOOL:
+                if d < on_tool_d:
+                    on_tool, on_tool_d = part.name, d
+            else:
+                candidates.append((d, part.name, index))
     if not candidates:
-        f.events.append(GrabRefused(frame, "", "nothing_in_reach", hand))
+        if on_tool:
+            f.events.append(GrabRefused(frame, on_tool, "held_by_tool", hand))
+        else:
+            f.events.append(GrabRefused(frame, "", "nothing_in_reach", hand))
         return
     _, name, index = min(candidates)
     body = f.scene.parts[index]
