@@ -148,8 +148,9 @@ SHAPES = st.one_of(
 @st.composite
 def sessions(draw):
     """A random scene and tracker stream: 1-3 parts on or above a table, an optional base
-    part (an obstacle box, or a plate) swung about by the left hand, and a right hand that
-    visits the parts, grabs, moves, turns, throws and lets go. Session-level physics
+    part (an obstacle box, or a plate) swung about by the left hand, a right hand that
+    visits the parts, grabs, moves, turns, throws and lets go, and an optional tool that
+    does the same. Session-level physics
     parameters are drawn too. Streams are resampled keyframes, optionally with noise."""
     n_parts = draw(st.integers(1, 3))
     parts = []
@@ -209,6 +210,26 @@ def sessions(draw):
                          "position": [draw(st.floats(-0.4, 0.4)), draw(st.floats(-0.3, 0.3)),
                                       0.74 + draw(st.floats(0.1, 0.5))]})
         devices["left_hand"] = left
+    if draw(st.booleans()):
+        # A tool (ONTOOL) that visits the parts too, attaching, carrying and letting go, up
+        # to a mass drawn around the parts' (some it lifts, some it refuses).
+        extra["tools"] = [{"name": "hoist", "max_mass_kg": draw(lengths(0.01, 500.0)),
+                           "grab_radius": draw(st.sampled_from([0.02, 0.05, 0.1]))}]
+        th = 0.0
+        hoist = [{"t": 0.0, "position": draw(st.sampled_from(parts))["pose"]["position"],
+                  "grip": False}]
+        for _ in range(draw(st.integers(2, 6))):
+            th += draw(st.floats(0.05, 0.6))
+            target = draw(st.sampled_from(parts))["pose"]["position"]
+            kf = {"t": th, "position": [target[0] + draw(st.floats(-0.05, 0.05)),
+                                        target[1] + draw(st.floats(-0.05, 0.05)),
+                                        target[2] + draw(st.floats(-0.2, 0.6))]}
+            if draw(st.booleans()):
+                kf["xyzw"] = list(draw(unit_quats()))
+            if draw(st.booleans()):
+                kf["grip"] = draw(st.booleans())
+            hoist.append(kf)
+        devices["hoist"] = hoist
     noise = None
     if draw(st.booleans()):
         noise = {"seed": draw(st.integers(0, 2**31)), "position_std": 0.001,
