@@ -341,3 +341,21 @@ def test_an_empty_session_still_writes_a_laid_out_file(tmp_path):
     reader = RrdReader(path)
     assert len(reader.blueprints()) == 1
     assert "/world/environment/table" in read_rrd(path)
+
+
+def test_a_tool_is_reviewed_as_a_device_with_its_grip(tmp_path):
+    """The hoist golden: the tool is drawn as a device frame following its tracker pose, its
+    marker green from the frame it attaches the ring (48) to the frame it lets go (192), and
+    the ring's state lane shows ONTOOL between."""
+    from conftest import RECORDINGS, run_cli
+    path = tmp_path / "hoist.rrd"
+    result = run_cli("vade-replay", str(RECORDINGS / "hoist_placed.mcap"), "--rerun", str(path))
+    assert result.returncode == 0, result.stderr
+    store = read_rrd(path)
+    hoist = "/world/recorded/devices/hoist"
+    assert rows(store, hoist, "Points3D:colors") == [(0, 0xBBBBBBFF), (48, 0x4CB86AFF),
+                                                     (192, 0xBBBBBBFF)]
+    assert {v for _, v in rows(store, hoist, "Points3D:labels")} == {"hoist"}
+    assert len(rows(store, hoist, "Transform3D:translation")) == 241
+    assert rows(store, "/states/recorded/ring", "StateChange:state") == [
+        (0, "STATIC"), (48, "ONTOOL"), (192, "ONBASESLIDE"), (204, "PLACED")]
