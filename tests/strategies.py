@@ -145,6 +145,24 @@ SHAPES = st.one_of(
 )
 
 
+def _visits(draw, parts: list, t: float, count: int) -> list:
+    """``count`` keyframes after ``t`` of a hand or a tool going from part to part (near
+    each, above it), sometimes turning, sometimes closing or opening its grip."""
+    out = []
+    for _ in range(count):
+        t += draw(st.floats(0.05, 0.6))
+        target = draw(st.sampled_from(parts))["pose"]["position"]
+        kf = {"t": t, "position": [target[0] + draw(st.floats(-0.05, 0.05)),
+                                   target[1] + draw(st.floats(-0.05, 0.05)),
+                                   target[2] + draw(st.floats(-0.2, 0.6))]}
+        if draw(st.booleans()):
+            kf["xyzw"] = list(draw(unit_quats()))
+        if draw(st.booleans()):
+            kf["grip"] = draw(st.booleans())
+        out.append(kf)
+    return out
+
+
 @st.composite
 def sessions(draw):
     """A random scene and tracker stream: 1-3 parts on or above a table, an optional base
@@ -169,17 +187,7 @@ def sessions(draw):
              {"t": t, "grip": True}]
     t += 0.2
     right.append({"t": t, "position": parts[0]["pose"]["position"]})  # closed on it
-    for _ in range(draw(st.integers(2, 8))):
-        t += draw(st.floats(0.05, 0.6))
-        target = draw(st.sampled_from(parts))["pose"]["position"]
-        kf = {"t": t, "position": [target[0] + draw(st.floats(-0.05, 0.05)),
-                                   target[1] + draw(st.floats(-0.05, 0.05)),
-                                   target[2] + draw(st.floats(-0.2, 0.6))]}
-        if draw(st.booleans()):
-            kf["xyzw"] = list(draw(unit_quats()))
-        if draw(st.booleans()):
-            kf["grip"] = draw(st.booleans())
-        right.append(kf)
+    right += _visits(draw, parts, t, draw(st.integers(2, 8)))
     physics = {}
     if draw(st.booleans()):
         physics = {
@@ -215,21 +223,9 @@ def sessions(draw):
         # to a mass drawn around the parts' (some it lifts, some it refuses).
         extra["tools"] = [{"name": "hoist", "max_mass_kg": draw(lengths(0.01, 500.0)),
                            "grab_radius": draw(st.sampled_from([0.02, 0.05, 0.1]))}]
-        th = 0.0
         hoist = [{"t": 0.0, "position": draw(st.sampled_from(parts))["pose"]["position"],
                   "grip": False}]
-        for _ in range(draw(st.integers(2, 6))):
-            th += draw(st.floats(0.05, 0.6))
-            target = draw(st.sampled_from(parts))["pose"]["position"]
-            kf = {"t": th, "position": [target[0] + draw(st.floats(-0.05, 0.05)),
-                                        target[1] + draw(st.floats(-0.05, 0.05)),
-                                        target[2] + draw(st.floats(-0.2, 0.6))]}
-            if draw(st.booleans()):
-                kf["xyzw"] = list(draw(unit_quats()))
-            if draw(st.booleans()):
-                kf["grip"] = draw(st.booleans())
-            hoist.append(kf)
-        devices["hoist"] = hoist
+        devices["hoist"] = hoist + _visits(draw, parts, 0.0, draw(st.integers(2, 6)))
     noise = None
     if draw(st.booleans()):
         noise = {"seed": draw(st.integers(0, 2**31)), "position_std": 0.001,
