@@ -27,7 +27,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     p.add_argument("-o", "--output", help="write the regenerated recording here")
     p.add_argument("--set", action="append", default=[], metavar="physics.NAME=VALUE",
-                   help="what-if: replay as if the session's physics said NAME: VALUE (repeatable; "
+                   help="what-if: replay as if the session's physics said NAME: VALUE, or with "
+                        "tools.TOOL.FIELD=VALUE its tool TOOL said FIELD: VALUE (repeatable; "
                         "JSON value in the session's units)")
     p.add_argument("--rerun", metavar="OUT.rrd",
                    help="write a rerun review: timeline, states, trajectories, divergence")

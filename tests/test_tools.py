@@ -189,3 +189,37 @@ def test_a_tool_in_a_csv_tracker_log():
     rows.append("2.1,crane,0,0,1,1,0,0,0,0")
     with pytest.raises(SessionError, match="crane"):
         run_records(doc, {"log.csv": "\n".join(rows).encode()})
+
+
+def test_a_what_if_with_a_weaker_tool_names_where_the_lift_fails(tmp_path):
+    """``--set tools.hoist.max_mass_kg=10``: the recorded inputs replayed with a 10 kg hoist
+    cannot lift the 20 kg ring; the report names the frame where it would have attached it,
+    and the analysis counts the refusal. Exit 0: a what-if's difference is its answer."""
+    result = run_cli("vade-replay", str(RECORDINGS / "hoist_placed.mcap"), "--json",
+                     "--set", "tools.hoist.max_mass_kg=10")
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(result.stdout)
+    assert summary["overrides"] == {"tools.hoist.max_mass_kg": 10}
+    assert summary["first_divergence"]["frame"] == 48
+    assert summary["analysis"]["refused_grabs"] == {"too_heavy_for_one_hand": 1,
+                                                    "too_heavy_for_tool": 1}
+    assert summary["analysis"]["parts"]["ring"]["time_in_state_s"] == {"STATIC": 4.0}
+    # And one that changes nothing the session does: the same run, to the bit.
+    same = run_cli("vade-replay", str(RECORDINGS / "hoist_placed.mcap"), "--json",
+                   "--set", "tools.hoist.max_mass_kg=25")
+    assert json.loads(same.stdout)["first_divergence"] is None
+
+
+@pytest.mark.parametrize("key, field", [
+    ("tools.crane.max_mass_kg", "tools.crane.max_mass_kg"),  # no such tool
+    ("tools.hoist.colour", "tools[0].colour"),               # no such field
+    ("tools.hoist.name", "tools.hoist.name"),                # the device's name
+    ("tools.hoist.grab_radius", "tools[0].grab_radius"),     # not a positive number
+])
+def test_a_what_if_of_a_tool_that_names_nothing_is_refused(key, field):
+    value = "-1" if key.endswith("grab_radius") else "10"
+    result = run_cli("vade-replay", str(RECORDINGS / "hoist_placed.mcap"), "--set",
+                     f"{key}={value}")
+    assert result.returncode == 2
+    assert result.stderr.startswith("error: ") and field in result.stderr
+    assert result.stderr.count("\n") == 1

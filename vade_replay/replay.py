@@ -168,8 +168,30 @@ _FRICTION_KEYS = {"friction_static": "static", "friction_dynamic": "dynamic",
                   "friction_holding_torque": "holding_torque"}
 
 
+def _override_target(doc: dict, physics: dict, key: str) -> dict:
+    """The block of the session document that ``key`` (``physics.NAME`` or
+    ``tools.TOOL.FIELD``) changes; a key that names nothing is a ConfigError naming it."""
+    if key.startswith("physics.") and key[8:] and "." not in key[8:]:
+        return physics
+    if key.startswith("tools."):
+        tool, _, name = key[6:].partition(".")
+        if name == "name":
+            raise ConfigError("a tool's name is its device in the recorded tracker stream, "
+                              "and cannot be changed", field=key)
+        for candidate in doc.get("tools", []):
+            if candidate.get("name") == tool and name and "." not in name:
+                return candidate
+        known = ", ".join(t.get("name", "?") for t in doc.get("tools", [])) or "none"
+        raise ConfigError(f"no tool {tool!r} in this session (its tools: {known}); use "
+                          "tools.TOOL.FIELD=VALUE", field=key)
+    raise ConfigError("only physics parameters and tools can be changed: physics.NAME=VALUE "
+                      "or tools.TOOL.FIELD=VALUE", field=key)
+
+
 def apply_overrides(session: Session, overrides: dict[str, str]) -> tuple[Session, dict]:
-    """The session as if its ``physics`` block said ``NAME: VALUE`` for each override.
+    """The session as if its ``physics`` block said ``NAME: VALUE`` for each override
+    ``physics.NAME``, and its tool ``TOOL`` said ``FIELD: VALUE`` for each ``tools.TOOL.FIELD``
+    (a tool's lifting limit or reach: would a smaller hoist have done?).
 
     Values are JSON (numbers, strings, lists) in the session's own units, exactly as they
     would be written in the session file; the changed document is validated against the
@@ -184,23 +206,21 @@ def apply_overrides(session: Session, overrides: dict[str, str]) -> tuple[Sessio
     physics = doc.setdefault("physics", {})
     applied: dict[str, object] = {}
     for key, text in sorted(overrides.items()):
-        if not key.startswith("physics.") or not key[8:]:
-            raise ConfigError("only physics parameters can be changed: physics.NAME=VALUE",
-                              field=key)
+        target = _override_target(doc, physics, key)
         try:
             value = strict_json(text)
         except json.JSONDecodeError:
             value = text
         except ValueError as exc:
             raise ConfigError(str(exc), field=key) from None
-        physics[key[8:]] = value
+        target[key.rpartition(".")[2]] = value
         applied[key] = value
         if key == "physics.model":
             # A model what-if brings the model's own schemes, whatever the session chose.
             for governed in PAPER_DEFAULTS:
                 if f"physics.{governed}" not in overrides:
                     physics.pop(governed, None)
-        if key[8:] in _FRICTION_KEYS:
+        if key.startswith("physics.") and key[8:] in _FRICTION_KEYS:
             # A what-if of friction means every contact: constraints lose their own value.
             for part in doc.get("parts", []):
                 for constraint in part.get("assembly", {}).get("constraints", []):
@@ -335,7 +355,7 @@ def physics_changes(recording: Recording, physics, applied: dict) -> dict:
     if "turn_step_s" not in recorded:
         recorded["turn_step_s"] = _step_in_effect(recorded, "turn_max_step_s", 1.0 / 120.0)
     now = {name: json.loads(text) for name, text in physics_metadata(physics).items()}
-    changed_on_purpose = {key[8:] for key in applied}
+    changed_on_purpose = {key[8:] for key in applied if key.startswith("physics.")}
     if "model" in changed_on_purpose:
         changed_on_purpose |= set(PAPER_DEFAULTS)
     out = {}
