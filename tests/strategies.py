@@ -48,12 +48,13 @@ def base_session(parts, base, physics=None) -> dict:
 
 def shaft_scene(physics=None, *, offset=(0.02, 0.0), mass=0.3, inertia=(1.2e-4, 1.5e-4, 2.4e-4),
                 friction=(0.3, 0.2), damping=0.0, axis=(1.0, 0.0, 0.0), length=0.4,
-                stop=None):
+                stop=None, final=None):
     """A shaft through the base origin along ``axis`` (base axes) and a disc on it.
 
     The disc's axis is its z; its CM is ``offset`` (part x, y) off that axis, so (0, 0) puts
     the CM on the shaft. ``stop`` adds a block on the shaft at that coordinate (a collar the
-    disc runs into), 2 cm long."""
+    disc runs into), 2 cm long. ``final``: the disc's ``final_pose`` and
+    ``final_tolerance`` (assembly fields of a session)."""
     u = sp.normalize(axis)
     # A cylinder is along its z: turn z onto u.
     z = (0.0, 0.0, 1.0)
@@ -80,6 +81,7 @@ def shaft_scene(physics=None, *, offset=(0.02, 0.0), mass=0.3, inertia=(1.2e-4, 
                  "base": {"point": [0, 0, 0], "direction": list(u)},
                  "friction": {"static": friction[0], "dynamic": friction[1],
                               "rotational": damping}}]}}
+    disc["assembly"].update(final or {})
     return build_scene(base_session([disc], base, physics), {})
 
 

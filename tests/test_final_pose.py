@@ -169,3 +169,37 @@ def test_passed_just_before_a_block_it_is_placed_not_blocked():
     at_end = run_records(_doc("frame_end") | {"parts": doc["parts"]})
     assert _placed_frame(at_end) is None
     assert at_end[-1].parts[0].mode == "ONBASESTATIC"
+
+
+@pytest.mark.parametrize("t_final", [0.087, 0.092, 0.0975, 0.1035])
+def test_a_disc_stopped_in_its_slide_and_turning_on_through_its_final_angle_is_placed(
+        t_final):
+    """A disc slides along a horizontal frictionless shaft at 1 m/s into a collar and spins
+    at a steady 20 rad/s about it (its CM on the axis: no torque). The collar stops the
+    slide within frame 6 (t = 0.0849 s); the turn goes on. Its final pose is at the collar,
+    at the angle it turns through at ``t_final``, 2 degrees wide: it enters the tolerance
+    1.75 ms before, and is PLACED in the frame that holds that instant (the 60 Hz frame n
+    ends at n / 60 s). Before, the search stopped at the contact: a final angle passed after
+    it in the same frame (t_final 0.092 and 0.0975 s) waited a whole revolution, 0.31 s."""
+    import strategies as S
+    from test_stress import on_shaft, run_times
+    from vade_replay import constraints as cn
+    from vade_replay import spatial as sp
+    plain = S.shaft_scene(friction=(0.0, 0.0), offset=(0.0, 0.0), stop=-0.1)
+    mate = plain.parts[0].assembly.mates[0]
+    snapped = cn.recognise(mate, S.disc_on_shaft_pose((1.0, 0.0, 0.0)))
+    start = on_shaft(plain, sp.Pose((0.0, 0.0, 1.0)), angle_rate=20.0, slide_rate=-1.0)
+    times = [n * 10**9 // RATE for n in range(10)]
+    stops = [s.parts[0].motion.slide[0] for _, s, _ in run_times(plain, start, times)]
+    x_contact = stops[-1]  # where the collar holds it
+    assert stops[4] > x_contact and stops[5] == x_contact  # stopped within frame 6
+    final = cn.relative_pose(mate, snapped, (x_contact,), 20.0 * t_final)
+    scene = S.shaft_scene(friction=(0.0, 0.0), offset=(0.0, 0.0), stop=-0.1, final={
+        "final_pose": {"position": list(final.position), "xyzw": list(final.rotation)},
+        "final_tolerance": {"distance": 0.002, "angle_deg": 2.0}})
+    state = on_shaft(scene, sp.Pose((0.0, 0.0, 1.0)), angle_rate=20.0, slide_rate=-1.0)
+    placed = [n for n, (_, s, events) in enumerate(run_times(scene, state, times), start=1)
+              if any(e.kind == "ModeChanged" and e.cause == "reached_final_pose"
+                     for e in events)]
+    t_enter = t_final - math.radians(2.0) / 20.0
+    assert placed == [math.ceil(t_enter * RATE)]

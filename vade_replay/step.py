@@ -892,6 +892,13 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
     if assembly.final_pose is not None and physics.final_pose_check == "path" and dt > 0.0:
         passed = _final_fraction(mate, m, x_end, v1, a_end, w1, rel, assembly, dt,
                                  1.0 if blocked is None else blocked[0])
+        if passed is None and blocked is not None and not blocked[2] \
+                and physics.block_cut == "blamed" and a1 != m.angle:
+            # Stopped in its slide only: the turn goes on to the frame's end along the same
+            # cubic, at the slide coordinates of the contact (``x1``, cut there).
+            still = tuple(0.0 for _ in v1)
+            passed = _final_fraction(mate, replace(m, slide=x1, slide_rate=still), x1, still,
+                                     a1, w1, rel, assembly, dt, 1.0, since=blocked[0])
     if not _still_on_base(f, body, mate, m, rel, x1):
         lam = _LEAVE_AT_END if blocked is not None or physics.slide_off != "located" \
             else _leaving_fraction(f, body, mate, m, x1, v1, a1, w1)
@@ -1107,10 +1114,10 @@ def _path_at(m: OnBase, x1: tuple[float, ...], v1: tuple[float, ...], a1: float,
 
 def _final_fraction(mate: cn.Mate, m: OnBase, x1: tuple[float, ...], v1: tuple[float, ...],
                     a1: float, w1: float, end: sp.Pose, assembly: Assembly, dt: float,
-                    until: float) -> float | None:
-    """The first fraction of the frame, up to ``until`` (where a block stopped the part;
-    ``end`` is its pose there), at which the frame's path (``_path_at`` to ``x1``, ``a1``)
-    is within the final tolerance, or None. Asked only at the frame's end, a part that
+                    until: float, since: float = 0.0) -> float | None:
+    """The first fraction of the frame, from ``since`` up to ``until`` (where a block
+    stopped the part; ``end`` is its pose there), at which the frame's path (``_path_at`` to
+    ``x1``, ``a1``) is within the final tolerance, or None. Asked only at the frame's end, a part that
     slid or turned through its final pose by more than the tolerance's width in a frame
     (4 mm at the default 2 mm: 0.24 m/s at 60 Hz) passed it unplaced, and whether it was
     placed depended on the frame rate.
@@ -1140,7 +1147,7 @@ def _final_fraction(mate: cn.Mate, m: OnBase, x1: tuple[float, ...], v1: tuple[f
         speed += turn_rate * sp.norm(sp.sub(r, sp.scale(u, sp.dot(r, u))))
     # Stretches [lo, hi] still to look at, the earliest on top. The budget only matters
     # for a path that runs along the tolerance's edge, just outside, for a long stretch.
-    stack = [(0.0, until, 0)]
+    stack = [(since, until, 0)]
     budget = _FINAL_EVALUATIONS
     while stack and budget > 0:
         budget -= 1
