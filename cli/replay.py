@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import argparse
+import csv
 import os
 import sys
 
 from vade_replay.errors import ConfigError
 from vade_replay.recording import Recording, ensure_writable
-from vade_replay.replay import as_recorded, replay
+from vade_replay.replay import ANALYSIS_COLUMNS, analysis_rows, as_recorded, replay
 
 from vade_replay.errors import VadeError
 
@@ -30,6 +31,9 @@ def _parser() -> argparse.ArgumentParser:
                    help="what-if: replay as if the session's physics said NAME: VALUE, or with "
                         "tools.TOOL.FIELD=VALUE its tool TOOL said FIELD: VALUE (repeatable; "
                         "JSON value in the session's units)")
+    p.add_argument("--csv", metavar="OUT.csv",
+                   help="write the analysis as a table: a row per recording and part (seconds in "
+                        "each state, grabs, drops, ..., placed at), for a study's sessions")
     p.add_argument("--rerun", metavar="OUT.rrd",
                    help="write a rerun review: timeline, states, trajectories, divergence")
     p.add_argument("--spawn", action="store_true",
@@ -52,12 +56,28 @@ def main(argv: list[str] | None = None) -> int:
     overrides = _overrides(args.set)
     if args.spawn and not args.rerun:
         raise ConfigError("--spawn opens the review: give --rerun OUT.rrd too", field="--spawn")
+    if args.csv:
+        ensure_writable(args.csv)  # before any replay: a study's batch fails at once
     if len(args.recordings) > 1:
         if args.output or args.rerun:
             raise ConfigError("-o and --rerun take one recording at a time",
                               field="-o" if args.output else "--rerun")
         return _many(args, overrides)
     return _one(args, args.recordings[0], overrides)
+
+
+def _write_table(path: str, summaries: list[dict]) -> None:
+    """The analysis of every replayed recording as CSV (``replay.ANALYSIS_COLUMNS``)."""
+    try:
+        with open(path, "w", newline="", encoding="utf-8") as stream:
+            writer = csv.DictWriter(stream, fieldnames=ANALYSIS_COLUMNS)
+            writer.writeheader()
+            for summary in summaries:
+                if "error" not in summary:
+                    writer.writerows(analysis_rows(summary["recording"], summary))
+    except OSError as exc:
+        raise ConfigError(f"cannot write the table to {path}: {exc.strerror or exc}",
+                          field="--csv") from None
 
 
 def _many(args, overrides: dict[str, str]) -> int:
@@ -74,7 +94,7 @@ def _many(args, overrides: dict[str, str]) -> int:
             continue
         code = EXIT_OK if summary.match or overrides else EXIT_DIVERGED
         worst = max(worst, code)
-        summaries.append({"recording": path, **summary.to_dict()})
+        summaries.append({**summary.to_dict(), "recording": path})
         if summary.truncated:
             print(f"warning: {path}: the recording was cut short (no end records); replayed "
                   f"the {summary.frames} complete frames it holds", file=sys.stderr)
@@ -83,6 +103,8 @@ def _many(args, overrides: dict[str, str]) -> int:
             print(f"{path}: {_verdict(summary, overrides, short=True)}{cut}")
     if args.json:
         print_json(summaries)
+    if args.csv:
+        _write_table(args.csv, summaries)
     return worst
 
 
@@ -135,6 +157,8 @@ def _one(args, path: str, overrides: dict[str, str]) -> int:
         print_json(summary.to_dict())
     else:
         print(_verdict(summary, overrides))
+    if args.csv:
+        _write_table(args.csv, [{**summary.to_dict(), "recording": path}])
     if args.rerun:
         from vade_replay.review import write_recording_review
 

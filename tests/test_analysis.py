@@ -62,3 +62,47 @@ def test_every_statistic_of_a_part_is_reported():
     stats = PartStats(grabs=2, placed_at_s=1.5)
     assert list(stats.as_dict()) == [f.name for f in fields(PartStats)]
     assert stats.as_dict()["grabs"] == 2 and stats.as_dict()["placed_at_s"] == 1.5
+
+
+def test_a_studys_recordings_as_one_table(tmp_path):
+    """``--csv``: a row per recording and part, the same numbers as ``--json``; a part's
+    seconds in the seven states add up to the session's duration."""
+    import csv
+    import json
+
+    from vade_replay.modes import Mode
+    from vade_replay.replay import ANALYSIS_COLUMNS
+    goldens = [str(RECORDINGS / f"{name}.mcap") for name in
+               ("hoist_placed", "shaft_placed", "throw_and_catch")]
+    table = tmp_path / "study" / "analysis.csv"
+    result = run_cli("vade-replay", *goldens, "--json", "--csv", str(table))
+    assert result.returncode == 0, result.stderr
+    summaries = {s["recording"]: s for s in json.loads(result.stdout)}
+    with open(table, newline="") as stream:
+        reader = csv.DictReader(stream)
+        assert tuple(reader.fieldnames) == ANALYSIS_COLUMNS
+        rows = list(reader)
+    assert [row["recording"] for row in rows] == goldens
+    for row in rows:
+        summary = summaries[row["recording"]]
+        stats = summary["analysis"]["parts"][row["part"]]
+        assert row["match"] == "True" and row["first_divergence_frame"] == ""
+        assert int(row["frames"]) == summary["frames"]
+        for key in ("grabs", "catches", "releases", "drops", "slid_off", "blocked"):
+            assert int(row[key]) == stats[key], key
+        times = [float(row[f"s_{mode.value}"]) for mode in Mode]
+        assert sum(times) == pytest.approx(summary["duration_s"], abs=1e-9)
+        for mode in Mode:
+            assert float(row[f"s_{mode.value}"]) == stats["time_in_state_s"].get(mode.value, 0.0)
+    hoist = next(row for row in rows if row["session"] == "hoist_placed")
+    assert (hoist["placed_at_s"], hoist["s_ONTOOL"], hoist["refused_grabs"]) == ("3.4", "2.4", "1")
+
+
+def test_a_table_that_cannot_be_written_is_named(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    result = run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"),
+                     "--csv", str(blocker / "analysis.csv"))
+    assert result.returncode == 2
+    assert result.stderr.startswith("error: ") and "analysis.csv" in result.stderr
+    assert "Traceback" not in result.stderr

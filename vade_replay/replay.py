@@ -21,6 +21,7 @@ from .analysis import SessionAnalysis
 from .collision import CollisionWorld
 from .errors import ConfigError, RecordingError, SessionError, VadeError
 from .frames import FrameRecord, TrackerFrame
+from .modes import Mode
 from .recording import (RecordedFrame, Recording, RecordingWriter, ensure_writable,
                         physics_metadata)
 from .scene import LENGTH_FIELDS, PAPER_DEFAULTS, Physics, Scene
@@ -96,6 +97,36 @@ class RunSummary:
                 self.transitions += 1
                 edge = f"{event.from_mode}->{event.to_mode}"
                 self.transitions_by_edge[edge] = self.transitions_by_edge.get(edge, 0) + 1
+
+
+# The analysis as a table (``vade-replay --csv``): one row per recording and part, the
+# columns a user study tabulates across sessions.
+PART_COUNTS = ("grabs", "catches", "releases", "drops", "slid_off", "lifted_off", "blocked")
+ANALYSIS_COLUMNS = ("recording", "session", "match", "first_divergence_frame", "frames",
+                    "duration_s", "part", *PART_COUNTS, "placed_at_s",
+                    *(f"s_{mode.value}" for mode in Mode), "refused_grabs")
+
+
+def analysis_rows(recording: str, summary: dict) -> list[dict]:
+    """Rows of ``ANALYSIS_COLUMNS`` from a summary as ``RunSummary.to_dict`` gives it: the
+    seconds in each state (0 for a state the part was never in), the counts, and the
+    session's refused grabs (every cause) on each of its parts' rows."""
+    divergence = summary.get("first_divergence")
+    analysis = summary["analysis"]
+    session = {"recording": recording, "session": summary["session"],
+               "match": summary["match"],
+               "first_divergence_frame": divergence["frame"] if divergence else "",
+               "frames": summary["frames"], "duration_s": summary["duration_s"],
+               "refused_grabs": sum(analysis["refused_grabs"].values())}
+    rows = []
+    for name, stats in sorted(analysis["parts"].items()):
+        times = stats["time_in_state_s"]
+        row = {**session, "part": name,
+               "placed_at_s": "" if stats["placed_at_s"] is None else stats["placed_at_s"]}
+        row.update({key: stats[key] for key in PART_COUNTS})
+        row.update({f"s_{mode.value}": times.get(mode.value, 0.0) for mode in Mode})
+        rows.append({column: row[column] for column in ANALYSIS_COLUMNS})
+    return rows
 
 
 def _first_difference(a, b, path: str = ""):
