@@ -6,6 +6,7 @@ import argparse
 import csv
 import os
 import sys
+from pathlib import Path
 
 from vade_replay.errors import ConfigError
 from vade_replay.recording import Recording, ensure_writable
@@ -57,6 +58,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.spawn and not args.rerun:
         raise ConfigError("--spawn opens the review: give --rerun OUT.rrd too", field="--spawn")
     if args.csv:
+        _check_table_path(args)
         ensure_writable(args.csv)  # before any replay: a study's batch fails at once
     if len(args.recordings) > 1:
         if args.output or args.rerun:
@@ -66,14 +68,28 @@ def main(argv: list[str] | None = None) -> int:
     return _one(args, args.recordings[0], overrides)
 
 
+def _check_table_path(args) -> None:
+    """``--csv`` may not name a recording being replayed nor another output of the run."""
+    table = Path(args.csv).resolve()
+    for option, paths in (("a recording replayed", args.recordings), ("-o", [args.output]),
+                          ("--rerun", [args.rerun])):
+        if any(p and Path(p).resolve() == table for p in paths):
+            raise ConfigError(f"refusing to write the table over {args.csv}, which is also "
+                              f"{option}", field="--csv")
+
+
 def _write_table(path: str, summaries: list[dict]) -> None:
-    """The analysis of every replayed recording as CSV (``replay.ANALYSIS_COLUMNS``)."""
+    """The analysis of every replayed recording as CSV (``replay.ANALYSIS_COLUMNS``); a
+    recording that could not be replayed is a row with its ``error``."""
     try:
         with open(path, "w", newline="", encoding="utf-8") as stream:
-            writer = csv.DictWriter(stream, fieldnames=ANALYSIS_COLUMNS)
+            writer = csv.DictWriter(stream, fieldnames=ANALYSIS_COLUMNS, restval="")
             writer.writeheader()
             for summary in summaries:
-                if "error" not in summary:
+                if "error" in summary:
+                    writer.writerow({"recording": summary["recording"],
+                                     "error": summary["error"]})
+                else:
                     writer.writerows(analysis_rows(summary["recording"], summary))
     except OSError as exc:
         raise ConfigError(f"cannot write the table to {path}: {exc.strerror or exc}",

@@ -95,7 +95,52 @@ def test_a_studys_recordings_as_one_table(tmp_path):
         for mode in Mode:
             assert float(row[f"s_{mode.value}"]) == stats["time_in_state_s"].get(mode.value, 0.0)
     hoist = next(row for row in rows if row["session"] == "hoist_placed")
-    assert (hoist["placed_at_s"], hoist["s_ONTOOL"], hoist["refused_grabs"]) == ("3.4", "2.4", "1")
+    assert (hoist["placed_at_s"], hoist["s_ONTOOL"], hoist["session_refused_grabs"],
+            hoist["error"]) == ("3.4", "2.4", "1", "")
+
+
+def test_the_table_has_a_row_per_part_and_one_per_recording_that_failed(tmp_path):
+    """Two parts: a row each, by name, both with the session's numbers. A file that is not a
+    recording among the replayed ones is a row naming its error (exit 2)."""
+    import csv
+
+    from conftest import session_doc
+    parts = [{"name": name, "shape": {"type": "box", "size": [0.04, 0.04, 0.08]},
+              "density": 2700, "pose": {"position": [x, 0.0, 0.78]}}
+             for name, x in (("zeta", 0.3), ("alpha", 0.0))]
+    hand = [{"t": 0.0, "position": [0.0, 0.0, 0.79], "grip": False}, {"t": 0.2, "grip": True},
+            {"t": 0.6, "position": [0.0, 0.0, 1.0]}, {"t": 0.8, "grip": False}]
+    session = tmp_path / "two.json"
+    session.write_text(__import__("json").dumps(
+        session_doc(parts=parts, right_hand=hand, duration_s=1.5)))
+    assert run_cli("vade-record", str(session), "-o", str(tmp_path / "two.mcap")).returncode == 0
+    (tmp_path / "broken.mcap").write_bytes(b"not a recording")
+    table = tmp_path / "t.csv"
+    result = run_cli("vade-replay", str(tmp_path / "two.mcap"), str(tmp_path / "broken.mcap"),
+                     "--csv", str(table))
+    assert result.returncode == 2
+    with open(table, newline="") as stream:
+        rows = list(csv.DictReader(stream))
+    assert [(r["part"], r["error"] != "") for r in rows] == [
+        ("alpha", False), ("zeta", False), ("", True)]
+    alpha, zeta, broken = rows
+    assert (alpha["grabs"], alpha["drops"], zeta["grabs"]) == ("1", "1", "0")
+    assert float(zeta["s_STATIC"]) == float(zeta["duration_s"]) == 1.5
+    assert broken["recording"].endswith("broken.mcap") and "MCAP" in broken["error"]
+
+
+@pytest.mark.parametrize("clash", ["input", "-o", "--rerun"])
+def test_the_table_never_overwrites_a_recording_or_another_output(tmp_path, clash):
+    import shutil
+    recording = tmp_path / "r.mcap"
+    shutil.copy(RECORDINGS / "drop_on_table.mcap", recording)
+    before = recording.read_bytes()
+    other = tmp_path / "other"
+    args = {"input": [], "-o": ["-o", str(other)], "--rerun": ["--rerun", str(other)]}[clash]
+    table = recording if clash == "input" else other
+    result = run_cli("vade-replay", str(recording), *args, "--csv", str(table))
+    assert result.returncode == 2 and "--csv" in result.stderr
+    assert recording.read_bytes() == before and not other.exists()
 
 
 def test_a_table_that_cannot_be_written_is_named(tmp_path):

@@ -171,35 +171,60 @@ def test_passed_just_before_a_block_it_is_placed_not_blocked():
     assert at_end[-1].parts[0].mode == "ONBASESTATIC"
 
 
-@pytest.mark.parametrize("t_final", [0.087, 0.092, 0.0975, 0.1035])
-def test_a_disc_stopped_in_its_slide_and_turning_on_through_its_final_angle_is_placed(
-        t_final):
-    """A disc slides along a horizontal frictionless shaft at 1 m/s into a collar and spins
-    at a steady 20 rad/s about it (its CM on the axis: no torque). The collar stops the
-    slide within frame 6 (t = 0.0849 s); the turn goes on. Its final pose is at the collar,
-    at the angle it turns through at ``t_final``, 2 degrees wide: it enters the tolerance
-    1.75 ms before, and is PLACED in the frame that holds that instant (the 60 Hz frame n
-    ends at n / 60 s). Before, the search stopped at the contact: a final angle passed after
-    it in the same frame (t_final 0.092 and 0.0975 s) waited a whole revolution, 0.31 s."""
+def _disc_into_a_collar(t_final: float, *, slide_rate: float = -1.0, distance: float = 0.002,
+                        block_cut: str = "blamed") -> list[int]:
+    """A disc slides along a horizontal frictionless shaft into a collar and spins at a
+    steady 20 rad/s (its CM on the axis: no torque). Its final pose is at the collar, at the
+    angle it turns through at ``t_final``, 2 degrees and ``distance`` wide. The 60 Hz frames
+    in which it is PLACED (frame n ends at n / 60 s)."""
     import strategies as S
     from test_stress import on_shaft, run_times
     from vade_replay import constraints as cn
     from vade_replay import spatial as sp
-    plain = S.shaft_scene(friction=(0.0, 0.0), offset=(0.0, 0.0), stop=-0.1)
+    physics = {"block_cut": block_cut}
+    plain = S.shaft_scene(physics, friction=(0.0, 0.0), offset=(0.0, 0.0), stop=-0.1)
     mate = plain.parts[0].assembly.mates[0]
     snapped = cn.recognise(mate, S.disc_on_shaft_pose((1.0, 0.0, 0.0)))
-    start = on_shaft(plain, sp.Pose((0.0, 0.0, 1.0)), angle_rate=20.0, slide_rate=-1.0)
-    times = [n * 10**9 // RATE for n in range(10)]
-    stops = [s.parts[0].motion.slide[0] for _, s, _ in run_times(plain, start, times)]
+    start = on_shaft(plain, sp.Pose((0.0, 0.0, 1.0)), angle_rate=20.0, slide_rate=slide_rate)
+    times = [n * 10**9 // RATE for n in range(30)]
+    stops = [s.parts[0].motion.slide[0] for _, s, _ in run_times(plain, start, times[:10])]
     x_contact = stops[-1]  # where the collar holds it
     assert stops[4] > x_contact and stops[5] == x_contact  # stopped within frame 6
     final = cn.relative_pose(mate, snapped, (x_contact,), 20.0 * t_final)
-    scene = S.shaft_scene(friction=(0.0, 0.0), offset=(0.0, 0.0), stop=-0.1, final={
+    scene = S.shaft_scene(physics, friction=(0.0, 0.0), offset=(0.0, 0.0), stop=-0.1, final={
         "final_pose": {"position": list(final.position), "xyzw": list(final.rotation)},
-        "final_tolerance": {"distance": 0.002, "angle_deg": 2.0}})
-    state = on_shaft(scene, sp.Pose((0.0, 0.0, 1.0)), angle_rate=20.0, slide_rate=-1.0)
-    placed = [n for n, (_, s, events) in enumerate(run_times(scene, state, times), start=1)
-              if any(e.kind == "ModeChanged" and e.cause == "reached_final_pose"
-                     for e in events)]
+        "final_tolerance": {"distance": distance, "angle_deg": 2.0}})
+    state = on_shaft(scene, sp.Pose((0.0, 0.0, 1.0)), angle_rate=20.0, slide_rate=slide_rate)
+    return [n for n, (_, s, events) in enumerate(run_times(scene, state, times), start=1)
+            if any(e.kind == "ModeChanged" and e.cause == "reached_final_pose"
+                   for e in events)]
+
+
+@pytest.mark.parametrize("t_final", [0.087, 0.092, 0.0975, 0.1035])
+def test_a_disc_stopped_in_its_slide_and_turning_on_through_its_final_angle_is_placed(
+        t_final):
+    """The collar stops the slide within frame 6 (t = 0.0849 s at 1 m/s); the turn goes on.
+    The disc enters the final angle's tolerance 1.75 ms before ``t_final`` and is PLACED in
+    the frame that holds that instant. Before, the search stopped at the contact: a final
+    angle entered after it in the same frame (t_final 0.087, 0.092 and 0.0975 s) waited a
+    whole revolution, 0.31 s."""
     t_enter = t_final - math.radians(2.0) / 20.0
-    assert placed == [math.ceil(t_enter * RATE)]
+    assert _disc_into_a_collar(t_final) == [math.ceil(t_enter * RATE)]
+
+
+def test_a_final_angle_passed_before_the_contact_away_from_the_final_position_is_not():
+    """The contact late in frame 6 (0.867 m/s: t = 0.098 s), the final angle's window at
+    0.088-0.092 s, when the disc is still 7 mm short of the collar (0.2 mm tolerance): not
+    PLACED then, though at the contact's slide coordinates the angle would have been right;
+    placed a revolution later (2 pi / 20 s), when it turns through the angle at the collar."""
+    t_final = 0.090
+    t_enter = t_final + 2.0 * math.pi / 20.0 - math.radians(2.0) / 20.0
+    assert _disc_into_a_collar(t_final, slide_rate=-0.08492 / 0.098, distance=0.0002) == [
+        math.ceil(t_enter * RATE)]
+
+
+def test_with_block_cut_both_the_turn_stops_at_the_contact_and_is_not_searched_beyond():
+    """``block_cut: both`` (older recordings) cuts the turn at the contact too: the angle
+    the part would have turned through after it in frame 6 is not reached in that frame."""
+    placed = _disc_into_a_collar(0.092, block_cut="both")
+    assert placed and placed[0] > 6

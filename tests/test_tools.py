@@ -210,14 +210,17 @@ def test_a_what_if_with_a_weaker_tool_names_where_the_lift_fails(tmp_path):
     assert json.loads(same.stdout)["first_divergence"] is None
 
 
-@pytest.mark.parametrize("key, field", [
-    ("tools.crane.max_mass_kg", "tools.crane.max_mass_kg"),  # no such tool
-    ("tools.hoist.colour", "tools[0].colour"),               # no such field
-    ("tools.hoist.name", "tools.hoist.name"),                # the device's name
-    ("tools.hoist.grab_radius", "tools[0].grab_radius"),     # not a positive number
+@pytest.mark.parametrize("key, value, field", [
+    ("tools.crane.max_mass_kg", "10", "tools.crane.max_mass_kg"),  # no such tool
+    ("tools.hoist.colour", "10", "tools[0].colour"),               # no such field
+    ("tools.hoist.name", "crane", "tools.hoist.name"),             # the device's name
+    ("tools.hoist.grab_radius", "-1", "tools[0].grab_radius"),     # not a positive number
+    ("tools.hoist.max_mass_kg", "1e400", "tools.hoist.max_mass_kg"),  # not finite
+    ("tools.hoist.", "1", "tools.hoist."),                         # no field
+    ("tools..max_mass_kg", "1", "tools..max_mass_kg"),             # no tool
+    ("tools.hoist.a.b", "1", "tools.hoist.a.b"),                   # a field of a field
 ])
-def test_a_what_if_of_a_tool_that_names_nothing_is_refused(key, field):
-    value = "-1" if key.endswith("grab_radius") else "10"
+def test_a_what_if_of_a_tool_that_names_nothing_is_refused(key, value, field):
     result = run_cli("vade-replay", str(RECORDINGS / "hoist_placed.mcap"), "--set",
                      f"{key}={value}")
     assert result.returncode == 2

@@ -104,20 +104,21 @@ class RunSummary:
 PART_COUNTS = ("grabs", "catches", "releases", "drops", "slid_off", "lifted_off", "blocked")
 ANALYSIS_COLUMNS = ("recording", "session", "match", "first_divergence_frame", "frames",
                     "duration_s", "part", *PART_COUNTS, "placed_at_s",
-                    *(f"s_{mode.value}" for mode in Mode), "refused_grabs")
+                    *(f"s_{mode.value}" for mode in Mode), "session_refused_grabs", "error")
 
 
 def analysis_rows(recording: str, summary: dict) -> list[dict]:
     """Rows of ``ANALYSIS_COLUMNS`` from a summary as ``RunSummary.to_dict`` gives it: the
     seconds in each state (0 for a state the part was never in), the counts, and the
-    session's refused grabs (every cause) on each of its parts' rows."""
+    session's refused grabs (every cause; the same on each of its parts' rows: a refusal
+    need not be of any one part). ``error`` is empty."""
     divergence = summary.get("first_divergence")
     analysis = summary["analysis"]
     session = {"recording": recording, "session": summary["session"],
                "match": summary["match"],
                "first_divergence_frame": divergence["frame"] if divergence else "",
                "frames": summary["frames"], "duration_s": summary["duration_s"],
-               "refused_grabs": sum(analysis["refused_grabs"].values())}
+               "session_refused_grabs": sum(analysis["refused_grabs"].values()), "error": ""}
     rows = []
     for name, stats in sorted(analysis["parts"].items()):
         times = stats["time_in_state_s"]
@@ -199,6 +200,17 @@ _FRICTION_KEYS = {"friction_static": "static", "friction_dynamic": "dynamic",
                   "friction_holding_torque": "holding_torque"}
 
 
+def _finite_numbers(value) -> bool:
+    """No infinite number in a JSON value (``strict_json`` already refuses NaN)."""
+    if isinstance(value, float):
+        return math.isfinite(value)
+    if isinstance(value, list):
+        return all(_finite_numbers(item) for item in value)
+    if isinstance(value, dict):
+        return all(_finite_numbers(item) for item in value.values())
+    return True
+
+
 def _override_target(doc: dict, physics: dict, key: str) -> dict:
     """The block of the session document that ``key`` (``physics.NAME`` or
     ``tools.TOOL.FIELD``) changes; a key that names nothing is a ConfigError naming it."""
@@ -206,11 +218,14 @@ def _override_target(doc: dict, physics: dict, key: str) -> dict:
         return physics
     if key.startswith("tools."):
         tool, _, name = key[6:].partition(".")
+        if not tool or not name or "." in name:
+            raise ConfigError("a tool's field is tools.TOOL.FIELD=VALUE: one tool, one field",
+                              field=key)
         if name == "name":
             raise ConfigError("a tool's name is its device in the recorded tracker stream, "
                               "and cannot be changed", field=key)
         for candidate in doc.get("tools", []):
-            if candidate.get("name") == tool and name and "." not in name:
+            if candidate.get("name") == tool:
                 return candidate
         known = ", ".join(t.get("name", "?") for t in doc.get("tools", [])) or "none"
         raise ConfigError(f"no tool {tool!r} in this session (its tools: {known}); use "
@@ -244,6 +259,8 @@ def apply_overrides(session: Session, overrides: dict[str, str]) -> tuple[Sessio
             value = text
         except ValueError as exc:
             raise ConfigError(str(exc), field=key) from None
+        if not _finite_numbers(value):  # 1e400 reads as infinity
+            raise ConfigError(f"{text} is not a finite number", field=key)
         target[key.rpartition(".")[2]] = value
         applied[key] = value
         if key == "physics.model":
