@@ -37,6 +37,7 @@ def test_counts_match_the_recorded_events(golden):
         mine = [e for e in events if e.part == name]
         assert stats["grabs"] == sum(e.kind == "PartGrabbed" for e in mine)
         assert stats["releases"] == sum(e.kind == "PartReleased" for e in mine)
+        assert stats["refused_grabs"] == sum(e.kind == "GrabRefused" for e in mine)
         placed = [e for e in mine if e.kind == "ModeChanged" and e.to_mode == "PLACED"]
         assert (stats["placed_at_s"] is None) == (not placed)
         assert sum(stats["time_in_state_s"].values()) == pytest.approx(summary["duration_s"],
@@ -88,15 +89,16 @@ def test_a_studys_recordings_as_one_table(tmp_path):
         stats = summary["analysis"]["parts"][row["part"]]
         assert row["match"] == "True" and row["first_divergence_frame"] == ""
         assert int(row["frames"]) == summary["frames"]
-        for key in ("grabs", "catches", "releases", "drops", "slid_off", "blocked"):
+        for key in ("grabs", "catches", "releases", "drops", "slid_off", "blocked",
+                    "refused_grabs"):
             assert int(row[key]) == stats[key], key
         times = [float(row[f"s_{mode.value}"]) for mode in Mode]
         assert sum(times) == pytest.approx(summary["duration_s"], abs=1e-9)
         for mode in Mode:
             assert float(row[f"s_{mode.value}"]) == stats["time_in_state_s"].get(mode.value, 0.0)
     hoist = next(row for row in rows if row["session"] == "hoist_placed")
-    assert (hoist["placed_at_s"], hoist["s_ONTOOL"], hoist["session_refused_grabs"],
-            hoist["error"]) == ("3.4", "2.4", "1", "")
+    assert (hoist["placed_at_s"], hoist["s_ONTOOL"], hoist["refused_grabs"],
+            hoist["session_refused_grabs"], hoist["error"]) == ("3.4", "2.4", "1", "1", "")
 
 
 def test_the_table_has_a_row_per_part_and_one_per_recording_that_failed(tmp_path):

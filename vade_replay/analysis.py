@@ -24,6 +24,7 @@ class PartStats:
     slid_off: int = 0           # left the base: off an end or edge
     lifted_off: int = 0         # left the base: the base turned so gravity pulled it off
     blocked: int = 0
+    refused_grabs: int = 0      # a hand or a tool closed on it and was refused (too heavy...)
     placed_at_s: float | None = None
 
     def as_dict(self) -> dict:
@@ -31,7 +32,8 @@ class PartStats:
         return {"time_in_state_s": self.time_in_state_s, "grabs": self.grabs,
                 "catches": self.catches, "releases": self.releases, "drops": self.drops,
                 "slid_off": self.slid_off, "lifted_off": self.lifted_off,
-                "blocked": self.blocked, "placed_at_s": self.placed_at_s}
+                "blocked": self.blocked, "refused_grabs": self.refused_grabs,
+                "placed_at_s": self.placed_at_s}
 
 
 @dataclass
@@ -71,6 +73,9 @@ class SessionAnalysis:
     def _event(self, event, t: int) -> None:
         if event.kind == "GrabRefused":
             self.refused_grabs[event.cause] = self.refused_grabs.get(event.cause, 0) + 1
+            refused = self.parts.get(event.part)  # the part in reach, if any
+            if refused is not None:
+                refused.refused_grabs += 1
             return
         stats = self.parts.get(event.part)
         if stats is None:
