@@ -98,7 +98,7 @@ def initial_state(scene: Scene, *, time_ns: int = 0) -> WorldState:
     parts = tuple(PartState(body.name, body.initial_mode, body.initial_pose)
                   for body in scene.parts)
     base_pose = scene.base.initial_pose if scene.base else None
-    grips = tuple(sorted((name, False) for name in (*_HANDS, *(t.name for t in scene.tools))))
+    grips = tuple(sorted((name, False) for name in _grip_devices(scene)))
     return WorldState(-1, time_ns, parts, base_pose, grips, _awake(parts), parts)
 
 
@@ -140,8 +140,7 @@ def _read_hands(f: _Frame, state: WorldState) -> None:
     """The hands' and the tools' poses and grips (a device without a sample this frame keeps
     its grip and has no pose)."""
     previous = dict(state.grips)
-    tools = f.scene.tools
-    for hand in _grip_devices(f):
+    for hand in _grip_devices(f.scene):
         sample = f.inputs.device(hand)
         if sample is None:
             f.grips[hand] = previous.get(hand, False)
@@ -182,17 +181,17 @@ def _move_free_parts(f: _Frame) -> None:
             _fly(f, index)
 
 
-def _grip_devices(f: _Frame) -> tuple[str, ...]:
+def _grip_devices(scene: Scene) -> tuple[str, ...]:
     """The devices with a grip, in the order they act within a frame: the tools (by name),
     then the hands. An order by role, not by name, so that renaming a tool changes nothing:
     a tool and a hand closing on one part in the same frame give it to the tool."""
-    tools = f.scene.tools
+    tools = scene.tools
     return _HANDS if not tools else (*(t.name for t in tools), *_HANDS)
 
 
 def _releases(f: _Frame, state: WorldState) -> None:
     previous = dict(state.grips)
-    for hand in _grip_devices(f):
+    for hand in _grip_devices(f.scene):
         if not (previous.get(hand, False) and not f.grips[hand]):
             continue
         for index in f.awake:
@@ -204,7 +203,7 @@ def _releases(f: _Frame, state: WorldState) -> None:
 
 def _grabs(f: _Frame, state: WorldState) -> None:
     previous = dict(state.grips)
-    for hand in _grip_devices(f):
+    for hand in _grip_devices(f.scene):
         if previous.get(hand, False) or not f.grips[hand] or hand not in f.hands:
             continue
         # The left hand holds the base part; it grabs only in scenes without one.
