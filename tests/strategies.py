@@ -168,9 +168,9 @@ def _visits(draw, parts: list, t: float, count: int) -> list:
 @st.composite
 def sessions(draw):
     """A random scene and tracker stream: 1-3 parts on or above a table, an optional base
-    part (an obstacle box, or a plate) swung about by the left hand, a right hand that
-    visits the parts, grabs, moves, turns, throws and lets go, and an optional tool that
-    does the same. Session-level physics
+    part (an obstacle box, or a plate) swung about by the left hand or fixed, a right hand
+    that visits the parts, grabs, moves, turns, throws and lets go, and an optional free
+    left hand (without a base or with a fixed one) and an optional tool that do the same. Session-level physics
     parameters are drawn too. Streams are resampled keyframes, optionally with noise."""
     n_parts = draw(st.integers(1, 3))
     parts = []
@@ -211,6 +211,31 @@ def sessions(draw):
                 {"type": "box", "size": [0.3, 0.3, 0.02]},
                 {"type": "box", "size": [0.3, 0.02, 0.06], "pose": {"position": [0, 0.14, 0.04]}}]}
         extra["base"] = {"name": "base", "shape": shape}
+    if "base" in extra and draw(st.booleans()):
+        # A fixture on the table (its lowest face on the table top).
+        extra["base"]["fixed"] = True
+        extra["base"]["pose"] = {"position": [draw(st.floats(-0.4, 0.4)),
+                                              draw(st.floats(-0.3, 0.3)),
+                                              0.765 if kind == "box" else 0.75]}
+    if "base" not in extra or extra["base"].get("fixed"):
+        how = draw(st.sampled_from(["none", "visits", "beside"]))
+        if how == "visits":
+            # A free left hand visits the parts too.
+            left = [{"t": 0.0, "position": draw(st.sampled_from(parts))["pose"]["position"],
+                     "grip": False}]
+            devices["left_hand"] = left + _visits(draw, parts, 0.0, draw(st.integers(2, 8)))
+        elif how == "beside":
+            # Beside the right hand, a little off it and a little late, closing and opening
+            # as it does: two hands lift a heavy part, and let go of it.
+            off = [draw(st.floats(-0.04, 0.04)) for _ in range(3)]
+            late = draw(st.sampled_from([0.0, 0.0, 0.03, 0.1]))
+            if draw(st.booleans()):
+                physics["two_hand_max_mass_kg"] = 1000.0  # most random parts are heavy
+            devices["left_hand"] = [
+                {**kf, "t": kf["t"] + late if kf["t"] > 0 else 0.0,
+                 **({"position": [a + b for a, b in zip(kf["position"], off)]}
+                    if "position" in kf else {})} for kf in right]
+    else:
         left = [{"t": 0.0, "position": [draw(st.floats(-0.4, 0.4)), draw(st.floats(-0.3, 0.3)),
                                         0.74 + draw(st.floats(0.1, 0.4))], "grip": True}]
         tl = 0.0

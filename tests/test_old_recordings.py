@@ -30,15 +30,18 @@ def test_an_old_recording_names_the_changed_defaults_and_replays_with_them():
     assert changed["final_pose_check"] == {"recorded": "frame_end", "now": "path"}
     assert changed["block_cut"] == {"recorded": "both", "now": "blamed"}
     assert changed["slide_step_s"] == {"recorded": 1 / 180, "now": 1 / 60}
+    # Before two hands lifted anything, they lifted what one hand lifts.
+    assert changed["two_hand_max_mass_kg"] == {"recorded": 5.0, "now": 15.0}
     assert set(changed) == {"slide_integrator", "slide_onset", "slide_off", "slide_step_s",
-                            "final_pose_check", "block_cut"}
+                            "final_pose_check", "block_cut", "two_hand_max_mass_kg"}
     # analytic brings its own 1/180 s, so the step need not be set.
     options, left_out = as_recorded(changed)
     assert options == ("--set physics.block_cut=both "
                        "--set physics.final_pose_check=frame_end "
                        "--set physics.slide_integrator=analytic "
                        "--set physics.slide_off=frame_end "
-                       "--set physics.slide_onset=sub_step") and left_out == []
+                       "--set physics.slide_onset=sub_step "
+                       "--set physics.two_hand_max_mass_kg=5.0") and left_out == []
     overrides = dict(item.split("=", 1) for item in options.replace("--set ", "").split())
     again = replay(Recording(OLD), overrides=overrides)
     assert again.match, again.first_divergence
@@ -54,7 +57,8 @@ def test_the_cli_says_so_beside_the_divergence(tmp_path):
     assert "--set physics.slide_integrator=analytic" in lines[1]
     many = run_cli("vade-replay", str(OLD), str(RECORDINGS / "gear_pendulum.mcap"))
     assert ("(made with other physics defaults: block_cut, final_pose_check, "
-            "slide_integrator, slide_off, slide_onset, slide_step_s)") in many.stdout
+            "slide_integrator, slide_off, slide_onset, slide_step_s, two_hand_max_mass_kg)"
+            ) in many.stdout
     as_json = run_cli("vade-replay", str(OLD), "--json")
     assert json.loads(as_json.stdout)["physics_changed"]["slide_integrator"]["now"] == "analytic4"
 
@@ -132,6 +136,6 @@ def test_vade_goldens_check_says_a_default_changed_since_a_golden_was_recorded(t
     assert result.returncode == 1
     assert "DIVERGED first divergence at frame" in result.stdout
     assert ("recorded with other physics defaults: block_cut, final_pose_check, "
-            "slide_integrator, slide_off, slide_onset, slide_step_s; if that change is meant, "
-            "re-record with vade-goldens") in result.stdout
+            "slide_integrator, slide_off, slide_onset, slide_step_s, two_hand_max_mass_kg; if "
+            "that change is meant, re-record with vade-goldens") in result.stdout
 

@@ -48,7 +48,7 @@ def test_a_tool_lifts_a_part_too_heavy_for_a_hand_and_carries_it_rigidly():
     records = run_records(_doc(right_hand=hand))
     refused = [e for r in records for e in r.events if e.kind == "GrabRefused"]
     assert [(e.part, e.cause, e.hand) for e in refused] == [
-        ("crate", "too_heavy_for_one_hand", "right_hand")]
+        ("crate", "too_heavy_for_two_hands", "right_hand")]  # 16 kg: more than two hands lift
     grabbed = [(r.frame, e.cause, e.hand) for r in records for e in r.events
                if e.kind == "PartGrabbed"]
     assert grabbed == [(12, "attached_to_tool", "hook")]  # the grip closes at t = 0.2 s
@@ -152,7 +152,7 @@ def test_the_hoist_golden_places_a_heavy_ring_with_a_tool():
         ("ONTOOL", "ONBASESLIDE", "released_on_constraint"),
         ("ONBASESLIDE", "PLACED", "reached_final_pose")]
     refused = [(e.cause, e.hand) for r in records for e in r.events if e.kind == "GrabRefused"]
-    assert refused == [("too_heavy_for_one_hand", "right_hand")]
+    assert refused == [("too_heavy_for_two_hands", "right_hand")]  # 20 kg
 
 
 def test_a_device_that_is_neither_a_hand_nor_a_tool_is_named():
@@ -201,7 +201,7 @@ def test_a_what_if_with_a_weaker_tool_names_where_the_lift_fails(tmp_path):
     summary = json.loads(result.stdout)
     assert summary["overrides"] == {"tools.hoist.max_mass_kg": 10}
     assert summary["first_divergence"]["frame"] == 48
-    assert summary["analysis"]["refused_grabs"] == {"too_heavy_for_one_hand": 1,
+    assert summary["analysis"]["refused_grabs"] == {"too_heavy_for_two_hands": 1,
                                                     "too_heavy_for_tool": 1}
     assert summary["analysis"]["parts"]["ring"]["time_in_state_s"] == {"STATIC": 4.0}
     # And one that changes nothing the session does: the same run, to the bit.

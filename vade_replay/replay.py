@@ -399,6 +399,9 @@ def physics_changes(recording: Recording, physics, applied: dict) -> dict:
         return {}
     for name, before in _BEFORE_THE_KEY.items():
         recorded.setdefault(name, before)
+    # Before two hands lifted anything, they lifted what one hand lifts.
+    if "two_hand_max_mass_kg" not in recorded and "one_hand_max_mass_kg" in recorded:
+        recorded["two_hand_max_mass_kg"] = recorded["one_hand_max_mass_kg"]
     if "slide_step_s" not in recorded:
         recorded["slide_step_s"] = _step_in_effect(recorded, "slide_max_step_s", 1.0 / 180.0)
     if "turn_step_s" not in recorded:

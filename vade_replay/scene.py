@@ -88,6 +88,9 @@ class Physics:
     release_window: int = 7
     grab_radius: float = 0.05
     one_hand_max_mass_kg: float = 5.0
+    # The paper's middle class of parts: lifted by two hands (both closed on it). At most
+    # one_hand_max_mass_kg: no part is lifted by two hands (as before 2026-11-22).
+    two_hand_max_mass_kg: float = 15.0
     contact_tolerance: float = 1e-4
     # Constrained motion on the base (defaults for every constraint that gives none).
     friction_static: float = 0.3
@@ -193,6 +196,8 @@ class Body:
 
 # Devices of the tracker stream that are not tools.
 HAND_DEVICES = ("head", "left_hand", "right_hand")
+# The grip of a part held by both hands, in its Held and its events (not a device).
+BOTH_HANDS = "both_hands"
 
 
 @dataclass(frozen=True)
@@ -218,6 +223,9 @@ class Scene:
     environment: tuple[Body, ...]           # sorted by name
     part_index: dict = field(default_factory=dict)
     tools: tuple[Tool, ...] = ()            # sorted by name
+    # The base stands where it is (a fixture on the table): the left hand does not carry
+    # it, and grabs parts as the right hand does.
+    base_fixed: bool = False
 
     def part(self, name: str) -> Body:
         return self.parts[self.part_index[name]]
@@ -399,7 +407,7 @@ def _principal(props: MassProperties) -> tuple[sp.Vec3, sp.Quat]:
 
 
 # Keys of a part's document that do not change its geometry or mass.
-_PLACEMENT_KEYS = ("name", "pose", "color", "assembly", "hand_from_base")
+_PLACEMENT_KEYS = ("name", "pose", "color", "assembly", "hand_from_base", "fixed")
 
 
 def _body(doc: dict, length_factor: float, files: dict[str, bytes], *, where: str, file: str,
@@ -554,9 +562,16 @@ def build_scene(session: dict, files: dict[str, bytes], *, file: str = "<session
          for i, doc in enumerate(session["parts"])), key=lambda b: b.name))
     base = None
     hand_from_base = sp.IDENTITY
+    base_fixed = False
     if "base" in session:
-        # The base part is held in the hand: its mass is not used unless given.
-        base = _body(session["base"], f, files, where="base", file=file, mode=Mode.INHAND,
+        # The base part is held in the left hand, or fixed (a fixture on the table): its
+        # mass is not used unless given.
+        base_fixed = bool(session["base"].get("fixed", False))
+        if base_fixed and "hand_from_base" in session["base"]:
+            raise SessionError("a fixed base is not held: hand_from_base has no use with "
+                               "base.fixed", file=file, field="base.hand_from_base")
+        base = _body(session["base"], f, files, where="base", file=file,
+                     mode=Mode.STATIC if base_fixed else Mode.INHAND,
                      needs_mass="density" in session["base"]
                      or "mass_properties" in session["base"])
         hand_from_base = pose_from_doc(session["base"].get("hand_from_base"), f,
@@ -582,7 +597,8 @@ def build_scene(session: dict, files: dict[str, bytes], *, file: str = "<session
                  part_index={b.name: i for i, b in enumerate(parts)},
                  tools=_tools(session.get("tools", []), physics, f, file=file,
                               taken={b.name for b in (*parts, *environment)}
-                              | ({base.name} if base is not None else set())))
+                              | ({base.name} if base is not None else set())),
+                 base_fixed=base_fixed)
 
 
 def _tools(docs: list, physics: Physics, length_factor: float, *, file: str,
@@ -593,10 +609,12 @@ def _tools(docs: list, physics: Physics, length_factor: float, *, file: str,
     tools: list[Tool] = []
     for i, doc in enumerate(docs):
         name = doc["name"]
-        if name in HAND_DEVICES or name in taken or any(t.name == name for t in tools):
+        if name in HAND_DEVICES or name == BOTH_HANDS or name in taken \
+                or any(t.name == name for t in tools):
             raise SessionError(f"tool name {name!r} is taken (by another tool, a part, the "
                                f"base, an environment object, or one of "
-                               f"{', '.join(HAND_DEVICES)})", file=file, field=f"tools[{i}].name")
+                               f"{', '.join((*HAND_DEVICES, BOTH_HANDS))})", file=file,
+                               field=f"tools[{i}].name")
         radius = doc.get("grab_radius")
         tools.append(Tool(name, float(doc["max_mass_kg"]),
                           physics.grab_radius if radius is None

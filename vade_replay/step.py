@@ -20,7 +20,7 @@ from .dynamics import free, onbase, velocity
 from .events import ContactMade, Event, GrabRefused, ModeChanged, PartGrabbed, PartReleased
 from .frames import FrameRecord, PartSnapshot, TrackerFrame
 from .modes import Cause, Mode, check_transition
-from .scene import Body, Scene
+from .scene import BOTH_HANDS, Body, Scene
 from .state import Held, OnBase, PartState, Resting, WorldState
 
 RIGHT, LEFT = "right_hand", "left_hand"
@@ -150,8 +150,9 @@ def _read_hands(f: _Frame, state: WorldState) -> None:
 
 
 def _move_base(f: _Frame) -> None:
-    # The base part is held in the left hand; without a left-hand tracker it stays put.
-    if f.scene.base is not None and LEFT in f.hands:
+    # The base part is held in the left hand; without a left-hand tracker, or fixed, it
+    # stays put.
+    if f.scene.base is not None and not f.scene.base_fixed and LEFT in f.hands:
         f.base_pose = f.hands[LEFT].compose(f.scene.hand_from_base)
 
 
@@ -163,9 +164,11 @@ def _follow_hands(f: _Frame) -> None:
         if part.mode is not INHAND and part.mode is not ONTOOL:
             continue
         held: Held = part.motion  # type: ignore[assignment]
-        hand = f.hands.get(held.hand)
+        hand = f.hands.get(held.hand) if held.hand != BOTH_HANDS else _both_hands_frame(f)
         if hand is None:
-            continue  # no sample for that hand this frame: the part stays where it was
+            # No sample for that hand this frame (or, in both hands, no frame of the two):
+            # the part stays where it was.
+            continue
         body = f.scene.parts[index]
         pose = hand.compose(held.hand_from_part)
         cm = pose.apply(body.center_of_mass)
@@ -196,9 +199,11 @@ def _releases(f: _Frame, state: WorldState) -> None:
             continue
         for index in f.awake:
             part = f.parts[index]
-            if (part.mode is INHAND or part.mode is ONTOOL) \
-                    and cast(Held, part.motion).hand == hand:
-                _release(f, index, hand)
+            if part.mode is INHAND or part.mode is ONTOOL:
+                holder = cast(Held, part.motion).hand
+                # A part in both hands is too heavy for either alone: one opening lets go.
+                if holder == hand or (holder == BOTH_HANDS and (hand == LEFT or hand == RIGHT)):
+                    _release(f, index, holder)
 
 
 def _grabs(f: _Frame, state: WorldState) -> None:
@@ -206,10 +211,22 @@ def _grabs(f: _Frame, state: WorldState) -> None:
     for hand in _grip_devices(f.scene):
         if previous.get(hand, False) or not f.grips[hand] or hand not in f.hands:
             continue
-        # The left hand holds the base part; it grabs only in scenes without one.
-        if hand == LEFT and f.scene.base is not None:
+        # The left hand holds the base part; it grabs in scenes without one or with a
+        # fixed one.
+        if hand == LEFT and f.scene.base is not None and not f.scene.base_fixed:
+            continue
+        # Both hands closed in this frame and took one part together: the second is busy.
+        if (hand == LEFT or hand == RIGHT) and _in_both_hands(f) >= 0:
             continue
         _grab(f, hand)
+
+
+def _in_both_hands(f: _Frame) -> int:
+    """The index of the part both hands hold, or -1."""
+    for index, part in enumerate(f.parts):
+        if part.mode is INHAND and cast(Held, part.motion).hand == BOTH_HANDS:
+            return index
+    return -1
 
 
 # --- grabbing and releasing -----------------------------------------------------------
@@ -262,9 +279,19 @@ def _grab(f: _Frame, hand: str) -> None:
         return
     _, name, index = min(candidates)
     body = f.scene.parts[index]
+    grip = hand  # the grip that takes it: the hand, the tool, or both hands
+    grip_pose = hand_pose
     if tool is None and body.mass_kg > physics.one_hand_max_mass_kg:
-        f.events.append(GrabRefused(frame, name, "too_heavy_for_one_hand", hand))
-        return
+        two_hands = physics.two_hand_max_mass_kg > physics.one_hand_max_mass_kg
+        if two_hands and body.mass_kg > physics.two_hand_max_mass_kg:
+            f.events.append(GrabRefused(frame, name, "too_heavy_for_two_hands", hand))
+            return
+        both = _both_hands_frame(f) if two_hands and _other_hand_free(f, hand) else None
+        if both is None or _distance_to_box(body, f.parts[index].pose,
+                                            f.hands[_other(hand)].position) > radius:
+            f.events.append(GrabRefused(frame, name, "too_heavy_for_one_hand", hand))
+            return
+        grip, grip_pose = BOTH_HANDS, both
     if tool is not None and body.mass_kg > tool.max_mass_kg:
         f.events.append(GrabRefused(frame, name, "too_heavy_for_tool", hand))
         return
@@ -274,9 +301,63 @@ def _grab(f: _Frame, hand: str) -> None:
     else:
         mode, cause = INHAND, Cause.CAUGHT if part.mode is INSPACE else Cause.GRABBED
     cm = part.pose.apply(body.center_of_mass)
-    held = Held(hand, hand_pose.inverse().compose(part.pose), ((f.t_ns, cm, part.pose.rotation),))
+    held = Held(grip, grip_pose.inverse().compose(part.pose), ((f.t_ns, cm, part.pose.rotation),))
     f.change_mode(index, PartState(name, mode, part.pose, sp.ZERO3, sp.ZERO3, held), cause)
-    f.events.append(PartGrabbed(frame, name, cause.value, hand))
+    f.events.append(PartGrabbed(frame, name, cause.value, grip))
+
+
+def _other(hand: str) -> str:
+    return RIGHT if hand == LEFT else LEFT
+
+
+def _other_hand_free(f: _Frame, hand: str) -> bool:
+    """Whether the other hand could join ``hand`` on a part: it is a hand that grabs (not
+    the left hand carrying the base), it is tracked and closed in this frame, and it holds
+    nothing."""
+    if hand != LEFT and hand != RIGHT:
+        return False
+    other = _other(hand)
+    if other == LEFT and f.scene.base is not None and not f.scene.base_fixed:
+        return False
+    if not f.grips.get(other, False) or other not in f.hands:
+        return False
+    for part in f.parts:
+        if (part.mode is INHAND or part.mode is ONTOOL) \
+                and cast(Held, part.motion).hand in (other, BOTH_HANDS):
+            return False
+    return True
+
+
+# Hands nearer than this (m) have no line between them, and a mean hand axis within this
+# of that line no turn about it: a part in both hands then stays where it was.
+_TWO_HAND_MIN: Final = 1e-6
+
+
+def _both_hands_frame(f: _Frame) -> sp.Pose | None:
+    """The frame a part in both hands follows: its origin midway between the hands, its x
+    axis from the left hand to the right, its y axis the sum of the two hands' own y axes
+    made perpendicular to x (the part turns about the line between the hands as the hands
+    turn together about it). None where either hand has no sample this frame, or the frame
+    is undefined (the hands together, or their y axes along the line between them)."""
+    left, right = f.hands.get(LEFT), f.hands.get(RIGHT)
+    if left is None or right is None:
+        return None
+    lp, rp = left.position, right.position
+    x = sp.sub(rp, lp)
+    n = sp.norm(x)
+    if not n >= _TWO_HAND_MIN:
+        return None
+    x = sp.scale(x, 1.0 / n)
+    a = sp.add(sp.quat_rotate(left.rotation, (0.0, 1.0, 0.0)),
+               sp.quat_rotate(right.rotation, (0.0, 1.0, 0.0)))
+    a = sp.sub(a, sp.scale(x, sp.dot(a, x)))
+    m = sp.norm(a)
+    if not m >= _TWO_HAND_MIN:
+        return None
+    y = sp.scale(a, 1.0 / m)
+    z = sp.cross(x, y)
+    rotation = sp.quat_from_matrix(((x[0], y[0], z[0]), (x[1], y[1], z[1]), (x[2], y[2], z[2])))
+    return sp.Pose(sp.scale(sp.add(lp, rp), 0.5), rotation)
 
 
 def _release(f: _Frame, index: int, hand: str) -> None:
@@ -1350,6 +1431,7 @@ def snapshot(part: PartState) -> PartSnapshot:
 
 
 _INHAND_TEXT: str = Mode.INHAND.value
+_STATIC_TEXT: str = Mode.STATIC.value
 
 
 def frame_record(scene: Scene, state: WorldState, inputs: TrackerFrame,
@@ -1364,8 +1446,14 @@ def frame_record(scene: Scene, state: WorldState, inputs: TrackerFrame,
     """
     base = None
     if scene.base is not None and state.base_pose is not None:
-        base = PartSnapshot(scene.base.name, _INHAND_TEXT, state.base_pose.position,
-                            state.base_pose.rotation, sp.ZERO3, sp.ZERO3)
+        if previous is not None and previous[0].base_pose is state.base_pose \
+                and previous[1].base is not None:
+            base = previous[1].base  # a base that did not move (fixed, or no left hand)
+        else:
+            base = PartSnapshot(scene.base.name,
+                                _STATIC_TEXT if scene.base_fixed else _INHAND_TEXT,
+                                state.base_pose.position, state.base_pose.rotation,
+                                sp.ZERO3, sp.ZERO3)
     prev_awake = previous[0].awake_parts() if previous is not None else None
     awake = state.awake_parts()
     if previous is None or prev_awake is None or awake is None:

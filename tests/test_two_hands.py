@@ -1,0 +1,238 @@
+"""Two hands (the paper's middle class of parts): a part too heavy for one hand and not for
+two is lifted when both hands close on it, follows the frame between the hands (origin
+midway, x from the left hand to the right, y the hands' summed y axes made perpendicular),
+and is let go when either hand opens. The left hand is free where the base is fixed."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+
+from conftest import RECORDINGS, run_cli, run_records, session_doc
+from vade_replay import spatial as sp
+from vade_replay.errors import SessionError
+
+G_FREE = 9.8 * 0.25  # the default scaled gravity of free flight
+# 0.4 x 0.2 x 0.1 m at 1250 kg/m^3: 10 kg, on the table (top at 0.74).
+CRATE = {"name": "crate", "shape": {"type": "box", "size": [0.4, 0.2, 0.1]}, "density": 1250,
+         "pose": {"position": [0.0, 0.0, 0.79]}}
+UP_Z = 1.2
+
+
+def _still(position, t0, t1, **first):
+    return [{"t": t0, "position": position, **first}, {"t": t1, "position": position}]
+
+
+def _doc(*, left, right, parts=(CRATE,), physics=None, duration_s=2.0, **extra):
+    doc = session_doc(parts=list(parts), right_hand=right, duration_s=duration_s,
+                      physics=physics, **extra)
+    doc["tracker"]["devices"]["left_hand"] = left
+    return doc
+
+
+def _lift(x, *, close_t, open_t=None, up_t=(0.4, 0.8)):
+    """A hand at the crate's end x (at its top), closing at close_t, lifting it 0.41 m
+    between up_t, opening at open_t."""
+    keys = [{"t": 0.0, "position": [x, 0.0, 0.8], "grip": False},
+            {"t": close_t, "grip": True},
+            {"t": up_t[0], "position": [x, 0.0, 0.8]},
+            {"t": up_t[1], "position": [x, 0.0, UP_Z]}]
+    if open_t is not None:
+        keys.append({"t": open_t, "grip": False})
+    return keys
+
+
+def _events(records, *kinds):
+    return [(r.frame, e.kind, e.part, e.cause, e.hand) for r in records for e in r.events
+            if e.kind in kinds]
+
+
+def test_the_other_hand_joining_lifts_a_part_too_heavy_for_one():
+    records = run_records(_doc(left=_lift(-0.21, close_t=0.2), right=_lift(0.21, close_t=0.1)))
+    assert _events(records, "GrabRefused", "PartGrabbed") == [
+        (6, "GrabRefused", "crate", "too_heavy_for_one_hand", "right_hand"),
+        (12, "PartGrabbed", "crate", "grabbed", "both_hands")]
+    last = records[-1].parts[0]
+    assert last.mode == "INHAND"
+    # Both hands lifted 0.41 m together: the crate with them, exactly, not turned.
+    assert last.position == pytest.approx((0.0, 0.0, 0.79 + UP_Z - 0.8), abs=1e-12)
+    assert last.rotation_xyzw == (0.0, 0.0, 0.0, 1.0)
+
+
+def test_both_hands_closing_in_one_frame_take_it_once():
+    records = run_records(_doc(left=_lift(-0.21, close_t=0.2), right=_lift(0.21, close_t=0.2)))
+    assert _events(records, "GrabRefused", "PartGrabbed") == [
+        (12, "PartGrabbed", "crate", "grabbed", "both_hands")]
+
+
+def test_a_part_in_both_hands_moves_rigidly_with_them():
+    """The hands turn together 90 degrees about a vertical line through (0.3, 0.1) and rise
+    0.2 m, each hand turning with them: wherever they come to rest, the part has made the
+    same rigid motion (the hands' rigid motion applied to the pose it was taken at)."""
+    centre = (0.3, 0.1, 0.0)
+    turn = sp.quat_axis_angle((0.0, 0.0, 1.0), math.pi / 2)
+    motion = sp.Pose(sp.sub(centre, sp.quat_rotate(turn, centre)), turn)  # about the line
+    lift = sp.Pose((0.0, 0.0, 0.2))
+
+    def hand(x, tilt_deg):
+        # Each hand has its own orientation (a tilt about the line between them keeps the
+        # frame's y axis; here they tilt oppositely, so their y axes still sum upright-ish).
+        q = sp.quat_from_euler_deg(tilt_deg, 0.0, 0.0)
+        start = sp.Pose((x, 0.0, 0.8), q)
+        end = lift.compose(motion).compose(start)
+        return [{"t": 0.0, "position": list(start.position), "xyzw": list(q), "grip": False},
+                {"t": 0.1, "grip": True},
+                {"t": 0.2, "position": list(start.position), "xyzw": list(q)},
+                {"t": 1.0, "position": list(end.position), "xyzw": list(end.rotation)}]
+
+    records = run_records(_doc(left=hand(-0.21, 20.0), right=hand(0.21, -35.0),
+                               duration_s=1.5))
+    assert _events(records, "PartGrabbed") == [(6, "PartGrabbed", "crate", "grabbed",
+                                                "both_hands")]
+    expected = lift.compose(motion).compose(sp.Pose((0.0, 0.0, 0.79)))
+    for r in records[61:]:  # from t = 1.0 s the hands are still at their end poses
+        part = r.parts[0]
+        assert part.position == pytest.approx(expected.position, abs=1e-12)
+        assert sp.quat_angle_between(part.rotation_xyzw, expected.rotation) < 1e-12
+
+
+def test_either_hand_opening_lets_go_and_it_falls_along_the_parabola():
+    records = run_records(_doc(left=_lift(-0.21, close_t=0.1, open_t=1.2),
+                               right=_lift(0.21, close_t=0.1)))
+    changes = [(r.frame, e.from_mode, e.to_mode, e.cause) for r in records for e in r.events
+               if e.kind == "ModeChanged"]
+    assert [c[1:] for c in changes] == [("STATIC", "INHAND", "grabbed"),
+                                        ("INHAND", "INSPACE", "released"),
+                                        ("INSPACE", "STATIC", "hit_environment")]
+    released = [e for r in records for e in r.events if e.kind == "PartReleased"]
+    assert [(e.cause, e.hand) for e in released] == [("released", "both_hands")]
+    # Still for 0.4 s before the left hand opened: it leaves at rest and falls
+    # z(t) = z0 - g t^2 / 2 (the right hand, still closed, cannot hold it alone).
+    assert max(abs(v) for v in released[0].linear_velocity) < 1e-12
+    t0_ns = changes[1][0] * 10**9 // 60
+    z0 = 0.79 + UP_Z - 0.8
+    for r in records:
+        if r.parts[0].mode == "INSPACE" and r.time_ns > t0_ns:
+            t = (r.time_ns - t0_ns) * 1e-9
+            assert r.parts[0].position[2] == pytest.approx(z0 - 0.5 * G_FREE * t * t, abs=1e-9)
+    assert records[-1].parts[0].position[2] == pytest.approx(0.79, abs=2e-4)
+
+
+@pytest.mark.parametrize("mass_case, cause", [
+    ("heavier than two hands lift", "too_heavy_for_two_hands"),
+    ("the other hand out of reach", "too_heavy_for_one_hand"),
+    ("the other hand holds a part", "too_heavy_for_one_hand"),
+    ("two-hand lifting off", "too_heavy_for_one_hand")])
+def test_two_hands_are_refused(mass_case, cause):
+    parts = [CRATE]
+    left = _lift(-0.21, close_t=0.1)
+    physics = None
+    if mass_case == "heavier than two hands lift":
+        physics = {"two_hand_max_mass_kg": 9.0}
+    elif mass_case == "the other hand out of reach":
+        left = _lift(-0.3, close_t=0.1)   # 0.1 m beyond the crate's end: reach is 0.05
+    elif mass_case == "the other hand holds a part":
+        parts = [CRATE, {"name": "pin", "shape": {"type": "box", "size": [0.02, 0.02, 0.04]},
+                         "density": 2700, "pose": {"position": [-0.3, 0.0, 0.76]}}]
+        left = [{"t": 0.0, "position": [-0.3, 0.0, 0.79], "grip": False},
+                {"t": 0.05, "grip": True},  # takes the pin
+                {"t": 0.1, "position": [-0.3, 0.0, 0.79]},
+                {"t": 0.15, "position": [-0.21, 0.0, 0.8]}]
+    else:
+        physics = {"two_hand_max_mass_kg": 5.0}  # at most one hand's: as before two hands
+    records = run_records(_doc(left=left, right=_lift(0.21, close_t=0.2), parts=parts,
+                               physics=physics))
+    refused = [(e.part, e.cause, e.hand) for r in records for e in r.events
+               if e.kind == "GrabRefused" and e.part == "crate"]
+    assert refused[-1] == ("crate", cause, "right_hand")
+    crate = records[-1].parts[[p.name for p in records[-1].parts].index("crate")]
+    assert crate.mode == "STATIC" and crate.position == (0.0, 0.0, 0.79)
+
+
+def test_the_left_hand_carrying_the_base_does_not_join():
+    base = {"name": "plate", "shape": {"type": "box", "size": [0.2, 0.2, 0.02]},
+            "pose": {"position": [-0.5, 0.0, 1.0]}}
+    records = run_records(_doc(left=_lift(-0.21, close_t=0.1), right=_lift(0.21, close_t=0.2),
+                               base=base))
+    assert _events(records, "GrabRefused", "PartGrabbed") == [
+        (12, "GrabRefused", "crate", "too_heavy_for_one_hand", "right_hand")]
+    # ... it carries the base (the left hand's pose composed with hand_from_base, identity).
+    assert records[-1].base.position == pytest.approx((-0.21, 0.0, UP_Z), abs=1e-12)
+    assert records[-1].base.mode == "INHAND"
+
+
+def test_a_fixed_base_stays_put_and_the_left_hand_grabs_as_the_right():
+    base = {"name": "plate", "fixed": True, "shape": {"type": "box", "size": [0.2, 0.2, 0.02]},
+            "pose": {"position": [-0.5, 0.0, 0.75]}}
+    peg = {"name": "peg", "shape": {"type": "box", "size": [0.04, 0.04, 0.08]},
+           "density": 2700, "pose": {"position": [0.2, 0.3, 0.78]}}  # 0.35 kg
+    left = [{"t": 0.0, "position": [0.2, 0.3, 0.83], "grip": False}, {"t": 0.1, "grip": True},
+            {"t": 0.2, "position": [0.2, 0.3, 0.83]}, {"t": 0.6, "position": [0.2, 0.3, 1.13]}]
+    right = [{"t": 0.0, "position": [0.5, -0.3, 1.0], "grip": False}]
+    records = run_records(_doc(left=left, right=right, parts=[peg], base=base, duration_s=1.0))
+    assert _events(records, "PartGrabbed") == [(6, "PartGrabbed", "peg", "grabbed", "left_hand")]
+    assert records[-1].parts[0].position == pytest.approx((0.2, 0.3, 1.08), abs=1e-12)
+    for r in records:
+        assert r.base.position == (-0.5, 0.0, 0.75) and r.base.mode == "STATIC"
+
+
+def test_hands_brought_together_hold_the_part_where_it_was():
+    """Where the frame between the hands is undefined (the hands at one point) the part
+    stays where it was, as when a hand has no sample; it follows again after."""
+    left = _lift(-0.21, close_t=0.1, up_t=(0.2, 0.4)) + [
+        {"t": 0.6, "position": [0.0, 0.0, UP_Z]}, {"t": 0.8, "position": [0.0, 0.0, UP_Z]},
+        {"t": 1.0, "position": [-0.21, 0.0, UP_Z + 0.1]}]
+    right = _lift(0.21, close_t=0.1, up_t=(0.2, 0.4)) + [
+        {"t": 0.6, "position": [0.0, 0.0, UP_Z]}, {"t": 0.8, "position": [0.0, 0.0, UP_Z]},
+        {"t": 1.0, "position": [0.21, 0.0, UP_Z + 0.1]}]
+    records = run_records(_doc(left=left, right=right, duration_s=1.2))
+    together = [r for r in records if 36 <= r.frame <= 48]
+    assert together and all(r.parts[0].position == together[0].parts[0].position
+                            for r in together)
+    assert all(math.isfinite(v) for r in records for v in r.parts[0].position)
+    assert records[-1].parts[0].position == pytest.approx((0.0, 0.0, 0.79 + UP_Z + 0.1 - 0.8),
+                                                          abs=1e-12)
+
+
+def test_session_errors_name_the_field():
+    from conftest import make_session
+    base = {"name": "plate", "fixed": True, "shape": {"type": "box", "size": [0.2, 0.2, 0.02]},
+            "hand_from_base": {"position": [0, 0, 0.1]}}
+    with pytest.raises(SessionError) as err:
+        make_session(_doc(left=_lift(-0.21, close_t=0.1), right=_lift(0.21, close_t=0.1),
+                          base=base)).build_scene()
+    assert err.value.field == "base.hand_from_base"
+    with pytest.raises(SessionError) as err:
+        make_session(_doc(left=_lift(-0.21, close_t=0.1), right=_lift(0.21, close_t=0.1),
+                          tools=[{"name": "both_hands", "max_mass_kg": 50}])).build_scene()
+    assert err.value.field == "tools[0].name"
+
+
+def test_the_golden_places_a_housing_with_both_hands():
+    from vade_replay.recording import Recording
+    from vade_replay.replay import recorded_records
+    records = list(recorded_records(Recording(RECORDINGS / "two_hand_placed.mcap")))
+    assert [(e.from_mode, e.to_mode, e.cause) for r in records for e in r.events
+            if e.kind == "ModeChanged"] == [
+        ("STATIC", "INHAND", "grabbed"), ("INHAND", "ONBASESLIDE", "released_on_constraint"),
+        ("ONBASESLIDE", "PLACED", "reached_final_pose")]
+    assert _events(records, "GrabRefused", "PartGrabbed", "PartReleased")[:3] == [
+        (30, "GrabRefused", "housing", "too_heavy_for_one_hand", "right_hand"),
+        (42, "PartGrabbed", "housing", "grabbed", "both_hands"),
+        (192, "PartReleased", "housing", "released_on_constraint", "both_hands")]
+    assert records[-1].base.mode == "STATIC"
+
+
+def test_a_what_if_with_one_hands_strength_names_where_the_lift_fails():
+    """``--set physics.two_hand_max_mass_kg=5``: could one person lift it without help?
+    No: the replay names the frame where both hands took it, and the housing stays on the
+    table. Exit 0: a what-if's difference is its answer."""
+    result = run_cli("vade-replay", str(RECORDINGS / "two_hand_placed.mcap"), "--json",
+                     "--set", "physics.two_hand_max_mass_kg=5")
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(result.stdout)
+    assert summary["first_divergence"]["frame"] == 42
+    assert summary["analysis"]["refused_grabs"] == {"too_heavy_for_one_hand": 2}
+    assert summary["analysis"]["parts"]["housing"]["time_in_state_s"] == {"STATIC": 4.0}
