@@ -7,6 +7,8 @@ import csv
 import os
 import sys
 from pathlib import Path
+from types import SimpleNamespace
+from typing import Iterator
 
 from vade_replay.errors import ConfigError
 from vade_replay.recording import Recording, ensure_writable
@@ -39,6 +41,9 @@ def _parser() -> argparse.ArgumentParser:
                    help="write a rerun review: timeline, states, trajectories, divergence")
     p.add_argument("--spawn", action="store_true",
                    help="with --rerun, also open the rerun viewer (when one can start)")
+    p.add_argument("-j", "--jobs", type=int, default=1, metavar="N",
+                   help="with several recordings, replay N at a time in worker processes "
+                        "(0: one per CPU); the output is the same, in the same order")
     return p
 
 
@@ -60,6 +65,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.csv:
         _check_table_path(args)
         ensure_writable(args.csv)  # before any replay: a study's batch fails at once
+    if args.jobs < 0:
+        raise ConfigError(f"--jobs takes a count of processes (0: one per CPU), got "
+                          f"{args.jobs}", field="--jobs")
     if len(args.recordings) > 1:
         if args.output or args.rerun:
             raise ConfigError("-o and --rerun take one recording at a time",
@@ -96,21 +104,43 @@ def _write_table(path: str, summaries: list[dict]) -> None:
                           field="--csv") from None
 
 
+def _replay_one(path: str, overrides: dict[str, str]) -> dict | str:
+    """One recording of several: its summary as ``--json`` prints it, or the description
+    of why it is unusable. Module-level and plain data, so that a worker process of
+    ``--jobs`` can run it and send it back."""
+    try:
+        return replay(Recording(path), overrides=overrides).to_dict()
+    except VadeError as exc:
+        return exc.describe()
+
+
+def _results(args, overrides: dict[str, str]) -> Iterator[dict | str]:
+    """Each recording's result, in the order given: in this process, or with ``--jobs``
+    in worker processes (each replay is independent and deterministic: the same results)."""
+    jobs = args.jobs or os.cpu_count() or 1
+    if jobs == 1:
+        for path in args.recordings:
+            yield _replay_one(path, overrides)
+        return
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(max_workers=min(jobs, len(args.recordings))) as pool:
+        yield from pool.map(_replay_one, args.recordings, [overrides] * len(args.recordings))
+
+
 def _many(args, overrides: dict[str, str]) -> int:
     """Check several recordings: one line (or JSON object) each; the worst exit code."""
     worst, summaries = EXIT_OK, []
-    for path in args.recordings:
-        try:
-            recording = Recording(path)
-            summary = replay(recording, overrides=overrides)
-        except VadeError as exc:
-            print(f"error: {exc.describe()}", file=sys.stderr)
-            summaries.append({"recording": path, "error": exc.describe()})
+    for path, result in zip(args.recordings, _results(args, overrides)):
+        if isinstance(result, str):
+            print(f"error: {result}", file=sys.stderr)
+            summaries.append({"recording": path, "error": result})
             worst = EXIT_UNUSABLE
             continue
+        summary = SimpleNamespace(**result)
         code = EXIT_OK if summary.match or overrides else EXIT_DIVERGED
         worst = max(worst, code)
-        summaries.append({**summary.to_dict(), "recording": path})
+        summaries.append({**result, "recording": path})
         if summary.truncated:
             print(f"warning: {path}: the recording was cut short (no end records); replayed "
                   f"the {summary.frames} complete frames it holds", file=sys.stderr)

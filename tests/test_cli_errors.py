@@ -281,6 +281,26 @@ def test_many_recordings_at_once(tmp_path):
     _assert_clean_error(run_cli("vade-replay", *good, "-o", str(tmp_path / "x.mcap")), "-o")
 
 
+def test_many_recordings_in_worker_processes_give_the_same_output(tmp_path):
+    """``--jobs 2``: the same lines, JSON and table, in the order given, and the same exit
+    code, as one at a time; an unusable file among them is still named."""
+    from mcap_edit import nudge_pose
+
+    bad = tmp_path / "bad.mcap"
+    nudge_pose(RECORDINGS / "drop_on_table.mcap", bad, frame=60, axis=1, delta=1e-9)
+    files = [str(RECORDINGS / "two_hand_placed.mcap"), str(bad), str(tmp_path / "missing.mcap"),
+             str(RECORDINGS / "gear_pendulum.mcap")]
+    for extra in ([], ["--json"], ["--set", "physics.gravity_scale_free=0.3"]):
+        one = run_cli("vade-replay", *files, *extra, "--csv", str(tmp_path / "one.csv"))
+        two = run_cli("vade-replay", *files, *extra, "--csv", str(tmp_path / "two.csv"),
+                      "--jobs", "2", process=True)
+        assert (two.returncode, two.stdout, two.stderr) == (one.returncode, one.stdout,
+                                                            one.stderr)
+        assert (tmp_path / "two.csv").read_text() == (tmp_path / "one.csv").read_text()
+    assert one.returncode == 2 and "missing.mcap" in one.stderr
+    _assert_clean_error(run_cli("vade-replay", *files, "--jobs", "-1"), "--jobs")
+
+
 UNWRITABLE = Path("/proc/vade-test-cannot-write-here")  # even root cannot create files in /proc
 
 
