@@ -236,3 +236,94 @@ def test_a_what_if_with_one_hands_strength_names_where_the_lift_fails():
     assert summary["first_divergence"]["frame"] == 42
     assert summary["analysis"]["refused_grabs"] == {"too_heavy_for_one_hand": 2}
     assert summary["analysis"]["parts"]["housing"]["time_in_state_s"] == {"STATIC": 4.0}
+
+
+def _hold_then(left_end, right_end, *, left_q=None, right_q=None, duration_s=1.5, noise=None,
+               start=(-0.21, 0.21)):
+    """Both hands close on the crate at t = 0.1 s (along x, at its ends, rotations as given
+    or untracked), then move to their end poses by t = 1.0 s and stay."""
+    def hand(x, end, q):
+        keys = [{"t": 0.0, "position": [x, 0.0, 0.8], "grip": False},
+                {"t": 0.1, "grip": True}, {"t": 0.2, "position": [x, 0.0, 0.8]},
+                {"t": 1.0, "position": list(end)}]
+        if q is not None:
+            keys[2]["xyzw"] = [0.0, 0.0, 0.0, 1.0]
+            keys[3]["xyzw"] = list(q)
+        return keys
+    doc = _doc(left=hand(start[0], left_end, left_q), right=hand(start[1], right_end, right_q),
+               duration_s=duration_s)
+    if noise:
+        doc["tracker"]["noise"] = noise
+    return run_records(doc)
+
+
+def _expected(left_end, right_end, rotation):
+    """The crate's pose for the frame between the hands at its end pose: the crate was taken
+    with that frame at the midpoint (0, 0, 0.8) of hands at (+-0.21, 0, 0.8)."""
+    mid = sp.scale(sp.add(left_end, right_end), 0.5)
+    return sp.Pose(mid, rotation).compose(sp.Pose((0.0, 0.0, -0.8))).compose(
+        sp.Pose((0.0, 0.0, 0.79)))
+
+
+def _assert_at(records, expected):
+    for r in records[61:]:
+        assert r.parts[0].position == pytest.approx(expected.position, abs=1e-12)
+        assert sp.quat_angle_between(r.parts[0].rotation_xyzw, expected.rotation) < 1e-12
+
+
+def test_hands_drawing_apart_carry_it_at_their_midpoint_unturned():
+    left, right = (-0.26, 0.0, 0.8), (0.36, 0.0, 0.8)
+    _assert_at(_hold_then(left, right), _expected(left, right, (0.0, 0.0, 0.0, 1.0)))
+
+
+def test_one_hand_raised_tilts_it_by_the_angle_of_the_line_between_them():
+    """Untracked hand rotations (fixed): the frame turns by the swing alone, the least
+    rotation from the line then to the line now: here about y by -atan(0.2 / 0.42)."""
+    left, right = (-0.21, 0.0, 0.8), (0.21, 0.0, 1.0)
+    tilt = sp.quat_axis_angle((0.0, 1.0, 0.0), -math.atan2(0.2, 0.42))
+    _assert_at(_hold_then(left, right), _expected(left, right, tilt))
+
+
+@pytest.mark.parametrize("left_deg, right_deg", [(40.0, 40.0), (10.0, 50.0), (-30.0, 70.0)])
+def test_hands_turning_about_the_line_between_them_turn_it_by_their_mean(left_deg, right_deg):
+    """Each hand turns about the line (x) by its own angle: the part turns by their mean."""
+    left, right = (-0.21, 0.0, 0.8), (0.21, 0.0, 0.8)
+    records = _hold_then(left, right,
+                         left_q=sp.quat_axis_angle((1.0, 0.0, 0.0), math.radians(left_deg)),
+                         right_q=sp.quat_axis_angle((1.0, 0.0, 0.0), math.radians(right_deg)))
+    mean = sp.quat_axis_angle((1.0, 0.0, 0.0), math.radians((left_deg + right_deg) / 2))
+    _assert_at(records, _expected(left, right, mean))
+
+
+def test_hands_along_their_own_axes_with_tracker_noise_do_not_flip_it():
+    """A review's case: hands holding the crate lengthwise along y, rotations untracked,
+    1 mm of tracker noise. The frame depends on the line between the hands, not on their
+    axes, so the part turns only as the noisy line does: ~1 mm / 0.42 m a frame."""
+    crate = {**CRATE, "shape": {"type": "box", "size": [0.2, 0.4, 0.1]}}
+    def hand(y):
+        return [{"t": 0.0, "position": [0.0, y, 0.8], "grip": False}, {"t": 0.1, "grip": True},
+                {"t": 0.2, "position": [0.0, y, 0.8]}, {"t": 1.0, "position": [0.0, y, 1.1]}]
+    doc = _doc(left=hand(-0.21), right=hand(0.21), parts=[crate], duration_s=1.2)
+    doc["tracker"]["noise"] = {"seed": 7, "position_std": 0.001}
+    records = run_records(doc)
+    assert _events(records, "PartGrabbed")[0][4] == "both_hands"
+    held = [r.parts[0] for r in records if r.parts[0].mode == "INHAND"]
+    steps = [sp.quat_angle_between(a.rotation_xyzw, b.rotation_xyzw)
+             for a, b in zip(held, held[1:])]
+    assert len(held) > 60 and max(steps) < 0.02
+
+
+@pytest.mark.parametrize("peg_near", ["left_hand", "right_hand"])
+def test_the_same_gesture_mirrored_gives_the_same_result(peg_near):
+    """Both hands close in one frame; a light peg is nearer one of them than the crate. That
+    hand takes the peg (the part nearest it), and the crate is refused to the other, whichever
+    side the peg is on: a two-hand grab needs the part to be the nearest to both hands."""
+    x = -0.21 if peg_near == "left_hand" else 0.21
+    peg = {"name": "peg", "shape": {"type": "box", "size": [0.02, 0.02, 0.04]}, "density": 2700,
+           "pose": {"position": [x + (0.01 if x > 0 else -0.01), 0.0, 0.8]}}  # the hand inside its box
+    records = run_records(_doc(left=_lift(-0.21, close_t=0.1), right=_lift(0.21, close_t=0.1),
+                               parts=[CRATE, peg]))
+    other = "right_hand" if peg_near == "left_hand" else "left_hand"
+    assert sorted(e[1:] for e in _events(records, "GrabRefused", "PartGrabbed")) == sorted([
+        ("PartGrabbed", "peg", "grabbed", peg_near),
+        ("GrabRefused", "crate", "too_heavy_for_one_hand", other)])

@@ -46,7 +46,8 @@ class ModeChanged(Event):
 @dataclass(frozen=True, slots=True)
 class PartGrabbed(Event):
     """A hand closed on a part (``grabbed``, or ``caught`` in flight), or a tool attached
-    it (``attached_to_tool``); ``hand`` is the hand's or the tool's device."""
+    it (``attached_to_tool``); ``hand`` is the hand's or the tool's device, or
+    ``both_hands`` for a part too heavy for one hand that both hands took together."""
 
     hand: str
 
@@ -56,8 +57,8 @@ class PartGrabbed(Event):
 
 @dataclass(frozen=True, slots=True)
 class GrabRefused(Event):
-    """A hand or a tool closed but took nothing: nothing in reach, or too heavy for one
-    hand or for the tool.
+    """A hand or a tool closed but took nothing: nothing in reach, too heavy for one hand
+    (the other not closed on it too), for two hands, or for the tool, or held by a tool.
 
     ``part`` is the nearest candidate, or empty when nothing is in reach.
     """
@@ -72,7 +73,7 @@ class GrabRefused(Event):
 @dataclass(frozen=True, slots=True)
 class PartReleased(Event):
     """A hand or a tool opened and let a part go with the estimated velocities (world,
-    m/s, rad/s)."""
+    m/s, rad/s); ``hand`` is ``both_hands`` when either hand opened on a part both held."""
 
     hand: str
     linear_velocity: Vec3

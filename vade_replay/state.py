@@ -12,16 +12,23 @@ from .modes import Mode
 
 @dataclass(slots=True)
 class Held:
-    """A part in a hand: its fixed offset from the hand and its recent CM poses."""
+    """A part in a hand (or a tool, or both hands): its fixed offset from the grip and its
+    recent CM poses. In both hands (``hand`` is ``both_hands``), the offset is from the
+    frame between the hands when they took it, and ``grasp`` is what that frame's motion is
+    measured from: the unit line from the left hand to the right then, and each hand's
+    rotation then (``step._both_hands_frame``)."""
 
     hand: str
     hand_from_part: sp.Pose
     history: tuple  # tuple[(time_ns, world CM, world rotation), ...], newest last
+    grasp: tuple    # () but in both hands: (line, left rotation, right rotation)
 
-    def __init__(self, hand: str, hand_from_part: sp.Pose, history: tuple) -> None:
+    def __init__(self, hand: str, hand_from_part: sp.Pose, history: tuple,
+                 grasp: tuple = ()) -> None:
         self.hand = hand
         self.hand_from_part = hand_from_part
         self.history = history
+        self.grasp = grasp
 
 
 @dataclass(slots=True)

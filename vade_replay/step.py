@@ -164,7 +164,8 @@ def _follow_hands(f: _Frame) -> None:
         if part.mode is not INHAND and part.mode is not ONTOOL:
             continue
         held: Held = part.motion  # type: ignore[assignment]
-        hand = f.hands.get(held.hand) if held.hand != BOTH_HANDS else _both_hands_frame(f)
+        hand = f.hands.get(held.hand) if held.hand != BOTH_HANDS \
+            else _both_hands_frame(f, held.grasp)
         if hand is None:
             # No sample for that hand this frame (or, in both hands, no frame of the two):
             # the part stays where it was.
@@ -175,7 +176,8 @@ def _follow_hands(f: _Frame) -> None:
         history = (held.history + ((f.t_ns, cm, pose.rotation),))[-keep:]
         v, w = velocity.estimate(history, method=physics.release_velocity,
                                  window=physics.release_window)
-        f.parts[index] = part.moved(pose, v, w, Held(held.hand, held.hand_from_part, history))
+        f.parts[index] = part.moved(pose, v, w, Held(held.hand, held.hand_from_part, history,
+                                                     held.grasp))
 
 
 def _move_free_parts(f: _Frame) -> None:
@@ -242,18 +244,16 @@ def _distance_to_box(body: Body, pose: sp.Pose, point: sp.Vec3) -> float:
     return math.sqrt(gap)
 
 
-def _grab(f: _Frame, hand: str) -> None:
-    """A hand (or a tool: ``hand`` is its device) closed: it takes the part nearest it."""
-    physics = f.scene.physics
-    tool = f.scene.tool(hand) if f.scene.tools else None
-    radius = physics.grab_radius if tool is None else tool.grab_radius
-    grabbable = _GRABBABLE if tool is None else _TOOL_GRABBABLE
-    hand_pose = f.hands[hand]
-    frame = f.inputs.frame
-    candidates = []
-    on_tool = ""  # the nearest part in reach that a tool holds, if any
+def _nearest(f: _Frame, position: sp.Vec3, radius: float,
+             grabbable: tuple) -> tuple[int, str]:
+    """The part a grip closing at ``position`` takes: the index of the grabbable part whose
+    bounding box is nearest, within ``radius`` (-1: none), and the nearest part in reach
+    that a tool holds ("": none)."""
+    best, best_d = -1, math.inf
+    best_name = ""
+    on_tool = ""
     on_tool_d = math.inf
-    hx, hy, hz = hand_pose.position
+    hx, hy, hz = position
     stats = f.collision.stats
     for index, part in enumerate(f.parts):
         if part.mode not in grabbable and part.mode is not ONTOOL:
@@ -264,44 +264,60 @@ def _grab(f: _Frame, hand: str) -> None:
         stats["bounding_tests"] += 1
         if (px - hx) ** 2 + (py - hy) ** 2 + (pz - hz) ** 2 > reach * reach:
             continue
-        d = _distance_to_box(f.scene.parts[index], part.pose, hand_pose.position)
+        d = _distance_to_box(f.scene.parts[index], part.pose, position)
         if d <= radius:
             if part.mode is ONTOOL:
                 if d < on_tool_d:
                     on_tool, on_tool_d = part.name, d
-            else:
-                candidates.append((d, part.name, index))
-    if not candidates:
+            elif d < best_d or (d == best_d and part.name < best_name):
+                best, best_d, best_name = index, d, part.name
+    return best, on_tool
+
+
+def _grab(f: _Frame, hand: str) -> None:
+    """A hand (or a tool: ``hand`` is its device) closed: it takes the part nearest it."""
+    physics = f.scene.physics
+    tool = f.scene.tool(hand) if f.scene.tools else None
+    radius = physics.grab_radius if tool is None else tool.grab_radius
+    hand_pose = f.hands[hand]
+    frame = f.inputs.frame
+    index, on_tool = _nearest(f, hand_pose.position, radius,
+                              _GRABBABLE if tool is None else _TOOL_GRABBABLE)
+    if index < 0:
         if on_tool:
             f.events.append(GrabRefused(frame, on_tool, "held_by_tool", hand))
         else:
             f.events.append(GrabRefused(frame, "", "nothing_in_reach", hand))
         return
-    _, name, index = min(candidates)
     body = f.scene.parts[index]
+    name = body.name
+    part = f.parts[index]
     grip = hand  # the grip that takes it: the hand, the tool, or both hands
-    grip_pose = hand_pose
+    hand_from_part = hand_pose.inverse().compose(part.pose)
+    grasp: tuple = ()
     if tool is None and body.mass_kg > physics.one_hand_max_mass_kg:
         two_hands = physics.two_hand_max_mass_kg > physics.one_hand_max_mass_kg
         if two_hands and body.mass_kg > physics.two_hand_max_mass_kg:
             f.events.append(GrabRefused(frame, name, "too_heavy_for_two_hands", hand))
             return
-        both = _both_hands_frame(f) if two_hands and _other_hand_free(f, hand) else None
-        if both is None or _distance_to_box(body, f.parts[index].pose,
-                                            f.hands[_other(hand)].position) > radius:
+        if not (two_hands and _other_hand_on(f, hand, index)):
             f.events.append(GrabRefused(frame, name, "too_heavy_for_one_hand", hand))
             return
-        grip, grip_pose = BOTH_HANDS, both
+        grip = BOTH_HANDS
+        left, right = f.hands[LEFT], f.hands[RIGHT]
+        line = sp.sub(right.position, left.position)
+        grasp = (sp.scale(line, 1.0 / sp.norm(line)), left.rotation, right.rotation)
+        hand_from_part = sp.Pose(sp.scale(sp.add(left.position, right.position), -0.5)
+                                 ).compose(part.pose)
     if tool is not None and body.mass_kg > tool.max_mass_kg:
         f.events.append(GrabRefused(frame, name, "too_heavy_for_tool", hand))
         return
-    part = f.parts[index]
     if tool is not None:
         mode, cause = ONTOOL, Cause.ATTACHED_TO_TOOL
     else:
         mode, cause = INHAND, Cause.CAUGHT if part.mode is INSPACE else Cause.GRABBED
     cm = part.pose.apply(body.center_of_mass)
-    held = Held(grip, grip_pose.inverse().compose(part.pose), ((f.t_ns, cm, part.pose.rotation),))
+    held = Held(grip, hand_from_part, ((f.t_ns, cm, part.pose.rotation),), grasp)
     f.change_mode(index, PartState(name, mode, part.pose, sp.ZERO3, sp.ZERO3, held), cause)
     f.events.append(PartGrabbed(frame, name, cause.value, grip))
 
@@ -310,10 +326,11 @@ def _other(hand: str) -> str:
     return RIGHT if hand == LEFT else LEFT
 
 
-def _other_hand_free(f: _Frame, hand: str) -> bool:
-    """Whether the other hand could join ``hand`` on a part: it is a hand that grabs (not
-    the left hand carrying the base), it is tracked and closed in this frame, and it holds
-    nothing."""
+def _other_hand_on(f: _Frame, hand: str, index: int) -> bool:
+    """Whether the other hand joins ``hand`` on part ``index``: it is a hand that grabs
+    (not the left hand carrying the base), it is tracked and closed in this frame (closing
+    now or before), it holds nothing, and the part is the one nearest it too (so the same
+    gesture mirrored gives the same result). The hands must be apart (a line between them)."""
     if hand != LEFT and hand != RIGHT:
         return False
     other = _other(hand)
@@ -325,39 +342,58 @@ def _other_hand_free(f: _Frame, hand: str) -> bool:
         if (part.mode is INHAND or part.mode is ONTOOL) \
                 and cast(Held, part.motion).hand in (other, BOTH_HANDS):
             return False
-    return True
+    if not sp.norm(sp.sub(f.hands[other].position, f.hands[hand].position)) >= _TWO_HAND_MIN:
+        return False
+    nearest, _ = _nearest(f, f.hands[other].position, f.scene.physics.grab_radius, _GRABBABLE)
+    return nearest == index
 
 
-# Hands nearer than this (m) have no line between them, and a mean hand axis within this
-# of that line no turn about it: a part in both hands then stays where it was.
+# Hands nearer than this (m) have no line between them: a part in both hands then stays
+# where it was, and is not taken.
 _TWO_HAND_MIN: Final = 1e-6
 
 
-def _both_hands_frame(f: _Frame) -> sp.Pose | None:
-    """The frame a part in both hands follows: its origin midway between the hands, its x
-    axis from the left hand to the right, its y axis the sum of the two hands' own y axes
-    made perpendicular to x (the part turns about the line between the hands as the hands
-    turn together about it). None where either hand has no sample this frame, or the frame
-    is undefined (the hands together, or their y axes along the line between them)."""
+def _swing(a: sp.Vec3, b: sp.Vec3) -> sp.Quat:
+    """The least rotation taking unit vector ``a`` to unit vector ``b`` (for opposite ones,
+    a half turn about an axis perpendicular to ``a``)."""
+    d = sp.dot(a, b)
+    if d < -1.0 + 1e-12:
+        axis = sp.normalize(sp.cross(a, (1.0, 0.0, 0.0) if abs(a[0]) < 0.9 else (0.0, 1.0, 0.0)))
+        return (axis[0], axis[1], axis[2], 0.0)
+    c = sp.cross(a, b)
+    return sp.quat_normalize((c[0], c[1], c[2], 1.0 + d))
+
+
+def _both_hands_frame(f: _Frame, grasp: tuple) -> sp.Pose | None:
+    """Where the frame of a part in both hands is now, relative to where it was when they
+    took it (``grasp``: the unit line from the left hand to the right then, and each hand's
+    rotation then). Its origin is midway between the hands; it turns by the least rotation
+    (the swing) that takes the line then to the line now, after a turn about the line by
+    the mean of the hands' own turns about it since (their twists, the swing taken out).
+    Hands moved together rigidly move it with them, exactly; untracked (fixed) hand
+    rotations give the swing alone. None where either hand has no sample this frame, or the
+    hands are together (no line)."""
     left, right = f.hands.get(LEFT), f.hands.get(RIGHT)
     if left is None or right is None:
         return None
-    lp, rp = left.position, right.position
-    x = sp.sub(rp, lp)
-    n = sp.norm(x)
+    line = sp.sub(right.position, left.position)
+    n = sp.norm(line)
     if not n >= _TWO_HAND_MIN:
         return None
-    x = sp.scale(x, 1.0 / n)
-    a = sp.add(sp.quat_rotate(left.rotation, (0.0, 1.0, 0.0)),
-               sp.quat_rotate(right.rotation, (0.0, 1.0, 0.0)))
-    a = sp.sub(a, sp.scale(x, sp.dot(a, x)))
-    m = sp.norm(a)
-    if not m >= _TWO_HAND_MIN:
-        return None
-    y = sp.scale(a, 1.0 / m)
-    z = sp.cross(x, y)
-    rotation = sp.quat_from_matrix(((x[0], y[0], z[0]), (x[1], y[1], z[1]), (x[2], y[2], z[2])))
-    return sp.Pose(sp.scale(sp.add(lp, rp), 0.5), rotation)
+    u0, left_then, right_then = grasp
+    swing = _swing(u0, sp.scale(line, 1.0 / n))
+    unswing = sp.quat_conj(swing)
+    s = c = 0.0
+    for now, then in ((left.rotation, left_then), (right.rotation, right_then)):
+        rest = sp.quat_mul(unswing, sp.quat_mul(now, sp.quat_conj(then)))
+        along = rest[0] * u0[0] + rest[1] * u0[1] + rest[2] * u0[2]
+        if abs(along) > 1e-12 or abs(rest[3]) > 1e-12:  # else: a half turn across the line
+            twist = 2.0 * math.atan2(along, rest[3])
+            s += math.sin(twist)
+            c += math.cos(twist)
+    twist = math.atan2(s, c)  # the mean of the two (0 where they cancel)
+    return sp.Pose(sp.scale(sp.add(left.position, right.position), 0.5),
+                   sp.quat_mul(swing, sp.quat_unit_axis_angle(u0, twist)))
 
 
 def _release(f: _Frame, index: int, hand: str) -> None:
