@@ -204,10 +204,13 @@ def test_a_what_if_with_a_weaker_tool_names_where_the_lift_fails(tmp_path):
     assert summary["analysis"]["refused_grabs"] == {"too_heavy_for_two_hands": 1,
                                                     "too_heavy_for_tool": 1}
     assert summary["analysis"]["parts"]["ring"]["time_in_state_s"] == {"STATIC": 4.0}
+    assert summary["analysis"]["parts"]["ring"]["tool_grabs"] == 0
     # And one that changes nothing the session does: the same run, to the bit.
     same = run_cli("vade-replay", str(RECORDINGS / "hoist_placed.mcap"), "--json",
                    "--set", "tools.hoist.max_mass_kg=25")
     assert json.loads(same.stdout)["first_divergence"] is None
+    ring = json.loads(same.stdout)["analysis"]["parts"]["ring"]
+    assert (ring["grabs"], ring["tool_grabs"], ring["two_hand_grabs"]) == (1, 1, 0)
 
 
 @pytest.mark.parametrize("key, value, field", [

@@ -235,6 +235,11 @@ def test_a_what_if_with_one_hands_strength_names_where_the_lift_fails():
     summary = json.loads(result.stdout)
     assert summary["first_divergence"]["frame"] == 42
     assert summary["analysis"]["refused_grabs"] == {"too_heavy_for_one_hand": 2}
+    assert summary["analysis"]["parts"]["housing"]["two_hand_grabs"] == 0
+    recorded = json.loads(run_cli("vade-replay", str(RECORDINGS / "two_hand_placed.mcap"),
+                                  "--json").stdout)["analysis"]["parts"]["housing"]
+    assert (recorded["grabs"], recorded["two_hand_grabs"], recorded["tool_grabs"],
+            recorded["refused_grabs"]) == (1, 1, 0, 1)
     assert summary["analysis"]["parts"]["housing"]["time_in_state_s"] == {"STATIC": 4.0}
 
 

@@ -18,6 +18,8 @@ class PartStats:
 
     time_in_state_s: dict[str, float] = field(default_factory=dict)
     grabs: int = 0
+    two_hand_grabs: int = 0     # of the grabs, by both hands (a part too heavy for one)
+    tool_grabs: int = 0         # of the grabs, by a tool
     catches: int = 0
     releases: int = 0
     drops: int = 0              # flights that ended on the table, another object or the base
@@ -30,6 +32,7 @@ class PartStats:
     def as_dict(self) -> dict:
         # Field by field: compiled (native.MODULES), the class has no ``__dict__``.
         return {"time_in_state_s": self.time_in_state_s, "grabs": self.grabs,
+                "two_hand_grabs": self.two_hand_grabs, "tool_grabs": self.tool_grabs,
                 "catches": self.catches, "releases": self.releases, "drops": self.drops,
                 "slid_off": self.slid_off, "lifted_off": self.lifted_off,
                 "blocked": self.blocked, "refused_grabs": self.refused_grabs,
@@ -83,6 +86,8 @@ class SessionAnalysis:
         if event.kind == "PartGrabbed":
             stats.grabs += 1
             stats.catches += event.cause == "caught"
+            stats.two_hand_grabs += event.hand == "both_hands"
+            stats.tool_grabs += event.cause == "attached_to_tool"
         elif event.kind == "PartReleased":
             stats.releases += 1
         elif event.kind == "ModeChanged":
