@@ -114,10 +114,18 @@ def _replay_one(path: str, overrides: dict[str, str]) -> dict | str:
         return exc.describe()
 
 
+def _cpus() -> int:
+    """The CPUs this process may run on (its affinity, where the system has one)."""
+    try:
+        return len(os.sched_getaffinity(0)) or 1
+    except AttributeError:
+        return os.cpu_count() or 1
+
+
 def _results(args, overrides: dict[str, str]) -> Iterator[dict | str]:
     """Each recording's result, in the order given: in this process, or with ``--jobs``
     in worker processes (each replay is independent and deterministic: the same results)."""
-    jobs = args.jobs or os.cpu_count() or 1
+    jobs = args.jobs or _cpus()
     if jobs == 1:
         for path in args.recordings:
             yield _replay_one(path, overrides)

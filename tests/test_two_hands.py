@@ -1,7 +1,8 @@
 """Two hands (the paper's middle class of parts): a part too heavy for one hand and not for
 two is lifted when both hands close on it, follows the frame between the hands (origin
-midway, x from the left hand to the right, y the hands' summed y axes made perpendicular),
-and is let go when either hand opens. The left hand is free where the base is fixed."""
+midway; turned frame by frame by the swing of the line between the hands and the mean of
+their twists about it), and is let go when either hand opens. The left hand is free where
+the base is fixed."""
 
 from __future__ import annotations
 
@@ -332,3 +333,67 @@ def test_the_same_gesture_mirrored_gives_the_same_result(peg_near):
     assert sorted(e[1:] for e in _events(records, "GrabRefused", "PartGrabbed")) == sorted([
         ("PartGrabbed", "peg", "grabbed", peg_near),
         ("GrabRefused", "crate", "too_heavy_for_one_hand", other)])
+
+
+def _steps(records):
+    held = [r.parts[0] for r in records if r.parts[0].mode == "INHAND"]
+    return held, [sp.quat_angle_between(a.rotation_xyzw, b.rotation_xyzw)
+                  for a, b in zip(held, held[1:])]
+
+
+def test_carried_round_about_the_vertical_with_untracked_hands_it_turns_about_the_vertical():
+    """A review's case: the hands carry the crate half a turn about the vertical in 10 degree
+    keyframes, the right hand 5 mm higher, rotations untracked. The least rotation from the
+    line at the grab to the line at the end is no turn about the vertical there (it turned
+    the crate upside down, 157 degrees in one frame). Built frame by frame (the line's
+    frame transported parallel along its path), it ends turned half a turn about the
+    vertical, upright but for the transport's turn about the line: the angle swept times
+    the sine of the line's tilt (pi sin(phi) over a latitude circle; the keyframes' chords
+    are near one)."""
+    keys_l, keys_r = [], []
+    for k in range(19):
+        t = 0.2 + 0.05 * k
+        a = math.radians(10.0 * k)
+        c, s_ = math.cos(a), math.sin(a)
+        keys_l.append({"t": t, "position": [-0.21 * c, -0.21 * s_, 0.8]})
+        keys_r.append({"t": t, "position": [0.21 * c, 0.21 * s_, 0.805]})
+    left = [{"t": 0.0, "position": [-0.21, 0.0, 0.8], "grip": False}, {"t": 0.1, "grip": True}]
+    right = [{"t": 0.0, "position": [0.21, 0.0, 0.805], "grip": False}, {"t": 0.1, "grip": True}]
+    records = run_records(_doc(left=left + keys_l, right=right + keys_r, duration_s=1.3))
+    held, steps = _steps(records)
+    # 10 degrees a keyframe, 3 frames apart: 0.0582 rad a frame, and never more.
+    assert max(steps) < math.radians(10.0) / 3 + 1e-3
+    up = sp.quat_rotate(held[-1].rotation_xyzw, (0.0, 0.0, 1.0))
+    phi = math.atan2(0.005, 0.42)
+    assert math.acos(up[2]) == pytest.approx(math.pi * math.sin(phi), abs=1e-3)  # 0.037 rad
+    along = sp.quat_rotate(held[-1].rotation_xyzw, (1.0, 0.0, 0.0))
+    assert along[0] == pytest.approx(-1.0, abs=1e-3) and abs(along[1]) < 1e-3
+
+
+def test_wrists_counter_turning_about_the_line_do_not_make_it_jump():
+    """A review's case: the wrists turn -120 and +120 degrees about the line between them:
+    the mean twist is none, all along (taken of the two wrists' whole turns since the grab,
+    it jumped half a turn where they were 180 degrees apart)."""
+    left, right = (-0.21, 0.0, 0.8), (0.21, 0.0, 0.8)
+    records = _hold_then(left, right,
+                         left_q=sp.quat_axis_angle((1.0, 0.0, 0.0), math.radians(-120.0)),
+                         right_q=sp.quat_axis_angle((1.0, 0.0, 0.0), math.radians(120.0)))
+    _, steps = _steps(records)
+    assert max(steps) < 1e-9
+    _assert_at(records, _expected(left, right, (0.0, 0.0, 0.0, 1.0)))
+
+
+@pytest.mark.parametrize("nearer", ["left_hand", "right_hand"])
+def test_a_light_part_both_hands_close_on_goes_to_the_nearer(nearer):
+    """Both hands close in one frame on a peg between them: the nearer hand takes it (the
+    left hand used to, acting first), the other closes on nothing it can take."""
+    peg = {"name": "peg", "shape": {"type": "box", "size": [0.02, 0.02, 0.04]}, "density": 2700,
+           "pose": {"position": [0.0, 0.0, 0.76]}}
+    near, far = 0.025, 0.045
+    lx, rx = (-near, far) if nearer == "left_hand" else (-far, near)
+    def hand(x):
+        return [{"t": 0.0, "position": [x, 0.0, 0.76], "grip": False}, {"t": 0.1, "grip": True}]
+    records = run_records(_doc(left=hand(lx), right=hand(rx), parts=[peg], duration_s=0.3))
+    grabbed = [e for e in _events(records, "PartGrabbed", "GrabRefused")]
+    assert grabbed[0] == (6, "PartGrabbed", "peg", "grabbed", nearer)
+    assert [e[1:4] for e in grabbed[1:]] == [("GrabRefused", "", "nothing_in_reach")]

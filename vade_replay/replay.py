@@ -101,8 +101,9 @@ class RunSummary:
 
 # The analysis as a table (``vade-replay --csv``): one row per recording and part, the
 # columns a user study tabulates across sessions.
-PART_COUNTS = ("grabs", "two_hand_grabs", "tool_grabs", "catches", "releases", "drops",
-               "slid_off", "lifted_off", "blocked", "refused_grabs")
+# New counts go last, so that a reader of an older table's columns by position still works.
+PART_COUNTS = ("grabs", "catches", "releases", "drops", "slid_off", "lifted_off", "blocked",
+               "refused_grabs", "two_hand_grabs", "tool_grabs")
 ANALYSIS_COLUMNS = ("recording", "session", "match", "first_divergence_frame", "frames",
                     "duration_s", "part", *PART_COUNTS, "placed_at_s",
                     *(f"s_{mode.value}" for mode in Mode), "session_refused_grabs", "error")

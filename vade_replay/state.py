@@ -14,14 +14,15 @@ from .modes import Mode
 class Held:
     """A part in a hand (or a tool, or both hands): its fixed offset from the grip and its
     recent CM poses. In both hands (``hand`` is ``both_hands``), the offset is from the
-    frame between the hands when they took it, and ``grasp`` is what that frame's motion is
-    measured from: the unit line from the left hand to the right then, and each hand's
-    rotation then (``step._both_hands_frame``)."""
+    frame between the hands when they took it, and ``grasp`` is that frame as of the last
+    frame: its origin, the unit line from the left hand to the right, each hand's rotation,
+    and the frame's rotation since the grab (``step._both_hands_grasp``)."""
 
     hand: str
     hand_from_part: sp.Pose
     history: tuple  # tuple[(time_ns, world CM, world rotation), ...], newest last
-    grasp: tuple    # () but in both hands: (line, left rotation, right rotation)
+    # () but in both hands: (origin, line, left rotation, right rotation, rotation)
+    grasp: tuple
 
     def __init__(self, hand: str, hand_from_part: sp.Pose, history: tuple,
                  grasp: tuple = ()) -> None:

@@ -164,9 +164,13 @@ def _follow_hands(f: _Frame) -> None:
         if part.mode is not INHAND and part.mode is not ONTOOL:
             continue
         held: Held = part.motion  # type: ignore[assignment]
-        hand = f.hands.get(held.hand) if held.hand != BOTH_HANDS \
-            else _both_hands_frame(f, held.grasp)
-        if hand is None:
+        grasp: tuple | None = held.grasp
+        if held.hand != BOTH_HANDS:
+            hand = f.hands.get(held.hand)
+        else:
+            grasp = _both_hands_grasp(f, held.grasp)
+            hand = None if grasp is None else sp.Pose(grasp[0], grasp[4])
+        if hand is None or grasp is None:
             # No sample for that hand this frame (or, in both hands, no frame of the two):
             # the part stays where it was.
             continue
@@ -177,7 +181,7 @@ def _follow_hands(f: _Frame) -> None:
         v, w = velocity.estimate(history, method=physics.release_velocity,
                                  window=physics.release_window)
         f.parts[index] = part.moved(pose, v, w, Held(held.hand, held.hand_from_part, history,
-                                                     held.grasp))
+                                                     grasp))
 
 
 def _move_free_parts(f: _Frame) -> None:
@@ -210,13 +214,23 @@ def _releases(f: _Frame, state: WorldState) -> None:
 
 def _grabs(f: _Frame, state: WorldState) -> None:
     previous = dict(state.grips)
-    for hand in _grip_devices(f.scene):
-        if previous.get(hand, False) or not f.grips[hand] or hand not in f.hands:
-            continue
-        # The left hand holds the base part; it grabs in scenes without one or with a
-        # fixed one.
-        if hand == LEFT and f.scene.base is not None and not f.scene.base_fixed:
-            continue
+    closing = [hand for hand in _grip_devices(f.scene)
+               if not previous.get(hand, False) and f.grips[hand] and hand in f.hands
+               # The left hand holds the base part; it grabs in scenes without one or with
+               # a fixed one.
+               and not (hand == LEFT and f.scene.base is not None and not f.scene.base_fixed)]
+    if LEFT in closing and RIGHT in closing:
+        # Both hands close in this frame: the one nearer the part nearest it acts first (at
+        # equal distances the right), so a part both reach goes to the nearer hand, and a
+        # gesture and its mirror image give the same result.
+        radius = f.scene.physics.grab_radius
+        left_d = _nearest(f, f.hands[LEFT].position, radius, _GRABBABLE)[1]
+        right_d = _nearest(f, f.hands[RIGHT].position, radius, _GRABBABLE)[1]
+        if left_d < right_d:
+            closing = [h for h in closing if h != RIGHT] + [RIGHT]
+        else:
+            closing = [h for h in closing if h != LEFT] + [LEFT]
+    for hand in closing:
         # Both hands closed in this frame and took one part together: the second is busy.
         if (hand == LEFT or hand == RIGHT) and _in_both_hands(f) >= 0:
             continue
@@ -245,10 +259,10 @@ def _distance_to_box(body: Body, pose: sp.Pose, point: sp.Vec3) -> float:
 
 
 def _nearest(f: _Frame, position: sp.Vec3, radius: float,
-             grabbable: tuple) -> tuple[int, str]:
+             grabbable: tuple) -> tuple[int, float, str]:
     """The part a grip closing at ``position`` takes: the index of the grabbable part whose
-    bounding box is nearest, within ``radius`` (-1: none), and the nearest part in reach
-    that a tool holds ("": none)."""
+    bounding box is nearest, within ``radius`` (-1: none), its distance (inf: none), and the
+    nearest part in reach that a tool holds ("": none)."""
     best, best_d = -1, math.inf
     best_name = ""
     on_tool = ""
@@ -271,7 +285,7 @@ def _nearest(f: _Frame, position: sp.Vec3, radius: float,
                     on_tool, on_tool_d = part.name, d
             elif d < best_d or (d == best_d and part.name < best_name):
                 best, best_d, best_name = index, d, part.name
-    return best, on_tool
+    return best, best_d, on_tool
 
 
 def _grab(f: _Frame, hand: str) -> None:
@@ -281,8 +295,8 @@ def _grab(f: _Frame, hand: str) -> None:
     radius = physics.grab_radius if tool is None else tool.grab_radius
     hand_pose = f.hands[hand]
     frame = f.inputs.frame
-    index, on_tool = _nearest(f, hand_pose.position, radius,
-                              _GRABBABLE if tool is None else _TOOL_GRABBABLE)
+    index, _, on_tool = _nearest(f, hand_pose.position, radius,
+                                 _GRABBABLE if tool is None else _TOOL_GRABBABLE)
     if index < 0:
         if on_tool:
             f.events.append(GrabRefused(frame, on_tool, "held_by_tool", hand))
@@ -306,9 +320,10 @@ def _grab(f: _Frame, hand: str) -> None:
         grip = BOTH_HANDS
         left, right = f.hands[LEFT], f.hands[RIGHT]
         line = sp.sub(right.position, left.position)
-        grasp = (sp.scale(line, 1.0 / sp.norm(line)), left.rotation, right.rotation)
-        hand_from_part = sp.Pose(sp.scale(sp.add(left.position, right.position), -0.5)
-                                 ).compose(part.pose)
+        middle = sp.scale(sp.add(left.position, right.position), 0.5)
+        grasp = (middle, sp.scale(line, 1.0 / sp.norm(line)), left.rotation, right.rotation,
+                 sp.IDENTITY_QUAT)
+        hand_from_part = sp.Pose(sp.scale(middle, -1.0)).compose(part.pose)
     if tool is not None and body.mass_kg > tool.max_mass_kg:
         f.events.append(GrabRefused(frame, name, "too_heavy_for_tool", hand))
         return
@@ -344,7 +359,8 @@ def _other_hand_on(f: _Frame, hand: str, index: int) -> bool:
             return False
     if not sp.norm(sp.sub(f.hands[other].position, f.hands[hand].position)) >= _TWO_HAND_MIN:
         return False
-    nearest, _ = _nearest(f, f.hands[other].position, f.scene.physics.grab_radius, _GRABBABLE)
+    nearest, _, _ = _nearest(f, f.hands[other].position, f.scene.physics.grab_radius,
+                             _GRABBABLE)
     return nearest == index
 
 
@@ -364,15 +380,19 @@ def _swing(a: sp.Vec3, b: sp.Vec3) -> sp.Quat:
     return sp.quat_normalize((c[0], c[1], c[2], 1.0 + d))
 
 
-def _both_hands_frame(f: _Frame, grasp: tuple) -> sp.Pose | None:
-    """Where the frame of a part in both hands is now, relative to where it was when they
-    took it (``grasp``: the unit line from the left hand to the right then, and each hand's
-    rotation then). Its origin is midway between the hands; it turns by the least rotation
-    (the swing) that takes the line then to the line now, after a turn about the line by
-    the mean of the hands' own turns about it since (their twists, the swing taken out).
-    Hands moved together rigidly move it with them, exactly; untracked (fixed) hand
-    rotations give the swing alone. None where either hand has no sample this frame, or the
-    hands are together (no line)."""
+def _both_hands_grasp(f: _Frame, grasp: tuple) -> tuple | None:
+    """The frame of a part in both hands, moved on from the last frame's (``grasp``: its
+    origin, the unit line from the left hand to the right, each hand's rotation, and the
+    frame's rotation since the hands took the part; all at the grab: origin and line there,
+    rotation identity). Its origin is midway between the hands. Its rotation is turned on
+    by this frame's increment: the least rotation (the swing) taking last frame's line to
+    this frame's, after a turn about last frame's line by the mean of the two hands' own
+    turns about it since last frame (their twists, the swing taken out). The increments of
+    hands moved together rigidly compose to their motion, exactly but for round-off;
+    untracked (fixed) hand rotations give the swing alone, frame by frame (carried round
+    about the vertical, the part turns about the vertical). Built frame by frame, it never
+    jumps (but where the hands swap sides within one frame). None where either hand has no
+    sample this frame, or the hands are together (no line)."""
     left, right = f.hands.get(LEFT), f.hands.get(RIGHT)
     if left is None or right is None:
         return None
@@ -380,8 +400,9 @@ def _both_hands_frame(f: _Frame, grasp: tuple) -> sp.Pose | None:
     n = sp.norm(line)
     if not n >= _TWO_HAND_MIN:
         return None
-    u0, left_then, right_then = grasp
-    swing = _swing(u0, sp.scale(line, 1.0 / n))
+    _, u0, left_then, right_then, rotation = grasp
+    u = sp.scale(line, 1.0 / n)
+    swing = _swing(u0, u)
     unswing = sp.quat_conj(swing)
     s = c = 0.0
     for now, then in ((left.rotation, left_then), (right.rotation, right_then)):
@@ -392,8 +413,9 @@ def _both_hands_frame(f: _Frame, grasp: tuple) -> sp.Pose | None:
             s += math.sin(twist)
             c += math.cos(twist)
     twist = math.atan2(s, c)  # the mean of the two (0 where they cancel)
-    return sp.Pose(sp.scale(sp.add(left.position, right.position), 0.5),
-                   sp.quat_mul(swing, sp.quat_unit_axis_angle(u0, twist)))
+    step = sp.quat_mul(swing, sp.quat_unit_axis_angle(u0, twist))
+    return (sp.scale(sp.add(left.position, right.position), 0.5), u, left.rotation,
+            right.rotation, sp.quat_normalize(sp.quat_mul(step, rotation)))
 
 
 def _release(f: _Frame, index: int, hand: str) -> None:
