@@ -175,6 +175,17 @@ def _divergence(inputs: TrackerFrame, recorded: list[tuple[str, bytes]],
         # naming the channel and frame (replay() adds the file), not a traceback.
         a = codec.loads(data_a, topic=topic_a, frame=frame)
         b = codec.loads(data_b, topic=topic_b, frame=frame)
+        if topic_a == codec.PARTS_TOPIC and isinstance(a, dict) and isinstance(b, dict) \
+                and a.get("complete") is False and b.get("complete") is False:
+            # A frame that lists only what changed: a part listed by one run and not the
+            # other moved in one and not in the other; name it, not the list's length.
+            names_a = [p.get("name") for p in a.get("parts") or [] if isinstance(p, dict)]
+            names_b = [p.get("name") for p in b.get("parts") or [] if isinstance(p, dict)]
+            for name in names_a + names_b:
+                if (name in names_a) != (name in names_b):
+                    return Divergence(frame, t, topic_a, name, "listed as changed",
+                                      "yes" if name in names_a else "no (unchanged)",
+                                      "yes" if name in names_b else "no (unchanged)")
         found = _first_difference(a, b)
         if found is None:
             # Same values, other bytes: not what this encoder writes, so not bit for bit.
