@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import csv
 import os
+import shutil
 import sys
 from pathlib import Path
 from types import SimpleNamespace
@@ -12,7 +13,8 @@ from typing import Iterator
 
 from vade_replay.errors import ConfigError
 from vade_replay.recording import Recording, ensure_writable
-from vade_replay.replay import ANALYSIS_COLUMNS, analysis_rows, as_recorded, replay
+from vade_replay.replay import (ANALYSIS_COLUMNS, EVENT_COLUMNS, POSE_COLUMNS, analysis_rows,
+                                as_recorded, event_rows, pose_rows, replay)
 
 from vade_replay.errors import VadeError
 
@@ -37,6 +39,12 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--csv", metavar="OUT.csv",
                    help="write the analysis as a table: a row per recording and part (seconds in "
                         "each state, grabs, drops, ..., placed at), for a study's sessions")
+    p.add_argument("--events", metavar="OUT.csv",
+                   help="write every event of the run as a table: a row per event (recording, "
+                        "frame, time, kind, part, cause, hand, modes, velocities)")
+    p.add_argument("--poses", metavar="OUT.csv",
+                   help="write the run's trajectories as a table: a row per frame and part "
+                        "(and the base): mode, position, rotation xyzw, velocities")
     p.add_argument("--rerun", metavar="OUT.rrd",
                    help="write a rerun review: timeline, states, trajectories, divergence")
     p.add_argument("--spawn", action="store_true",
@@ -62,9 +70,10 @@ def main(argv: list[str] | None = None) -> int:
     overrides = _overrides(args.set)
     if args.spawn and not args.rerun:
         raise ConfigError("--spawn opens the review: give --rerun OUT.rrd too", field="--spawn")
-    if args.csv:
-        _check_table_path(args)
-        ensure_writable(args.csv)  # before any replay: a study's batch fails at once
+    _check_table_paths(args)
+    for table in (args.csv, args.events, args.poses):
+        if table:
+            ensure_writable(table)  # before any replay: a study's batch fails at once
     if args.jobs < 0:
         raise ConfigError(f"--jobs takes a count of processes (0: one per CPU), got "
                           f"{args.jobs}", field="--jobs")
@@ -76,14 +85,61 @@ def main(argv: list[str] | None = None) -> int:
     return _one(args, args.recordings[0], overrides)
 
 
-def _check_table_path(args) -> None:
-    """``--csv`` may not name a recording being replayed nor another output of the run."""
-    table = Path(args.csv).resolve()
-    for option, paths in (("a recording replayed", args.recordings), ("-o", [args.output]),
-                          ("--rerun", [args.rerun])):
-        if any(p and Path(p).resolve() == table for p in paths):
-            raise ConfigError(f"refusing to write the table over {args.csv}, which is also "
-                              f"{option}", field="--csv")
+def _check_table_paths(args) -> None:
+    """A table (``--csv``, ``--events``, ``--poses``) may not name a recording being replayed
+    nor another output of the run."""
+    others = [("a recording replayed", args.recordings), ("-o", [args.output]),
+              ("--rerun", [args.rerun])]
+    for option, given in (("--csv", args.csv), ("--events", args.events),
+                          ("--poses", args.poses)):
+        if given:
+            table = Path(given).resolve()
+            for other, paths in others:
+                if any(p and Path(p).resolve() == table for p in paths):
+                    raise ConfigError(f"refusing to write the table over {given}, which is "
+                                      f"also {other}", field=option)
+            others.append((option, [given]))
+
+
+_FRAME_TABLES = {"events": (EVENT_COLUMNS, event_rows), "poses": (POSE_COLUMNS, pose_rows)}
+
+
+class _FrameTables:
+    """The ``--events`` and ``--poses`` tables of one recording's replay, written frame by
+    frame as it runs (``paths``: table kind -> file)."""
+
+    def __init__(self, recording: str, paths: dict[str, str], *, header: bool) -> None:
+        self.recording = recording
+        self.first_time_ns: int | None = None
+        self.tables = []
+        for kind, path in sorted(paths.items()):
+            columns, rows = _FRAME_TABLES[kind]
+            try:
+                stream = open(path, "w", newline="", encoding="utf-8")
+            except OSError as exc:
+                self.close()
+                raise ConfigError(f"cannot write the table to {path}: "
+                                  f"{exc.strerror or exc}", field=f"--{kind}") from None
+            writer = csv.DictWriter(stream, fieldnames=columns, restval="")
+            if header:
+                writer.writeheader()
+            self.tables.append((stream, writer, rows))
+
+    def __call__(self, item) -> None:
+        record = item.replayed
+        if self.first_time_ns is None:
+            self.first_time_ns = record.time_ns
+        for _, writer, rows in self.tables:
+            writer.writerows(rows(self.recording, record, self.first_time_ns))
+
+    def close(self) -> None:
+        for stream, _, _ in self.tables:
+            stream.close()
+
+
+def _frame_table_paths(args) -> dict[str, str]:
+    return {kind: path for kind, path in (("events", args.events), ("poses", args.poses))
+            if path}
 
 
 def _write_table(path: str, summaries: list[dict]) -> None:
@@ -104,12 +160,18 @@ def _write_table(path: str, summaries: list[dict]) -> None:
                           field="--csv") from None
 
 
-def _replay_one(path: str, overrides: dict[str, str]) -> dict | str:
+def _replay_one(path: str, overrides: dict[str, str], tables: dict[str, str]) -> dict | str:
     """One recording of several: its summary as ``--json`` prints it, or the description
     of why it is unusable. Module-level and plain data, so that a worker process of
-    ``--jobs`` can run it and send it back."""
+    ``--jobs`` can run it and send it back. ``tables``: the files (kind -> path) its rows
+    of the frame tables go to, without a header."""
     try:
-        return replay(Recording(path), overrides=overrides).to_dict()
+        frame_tables = _FrameTables(path, tables, header=False) if tables else None
+        try:
+            return replay(Recording(path), overrides=overrides, on_frame=frame_tables).to_dict()
+        finally:
+            if frame_tables:
+                frame_tables.close()
     except VadeError as exc:
         return exc.describe()
 
@@ -122,44 +184,75 @@ def _cpus() -> int:
         return os.cpu_count() or 1
 
 
-def _results(args, overrides: dict[str, str]) -> Iterator[dict | str]:
+def _results(args, overrides: dict[str, str], table_dir: str) -> Iterator[dict | str]:
     """Each recording's result, in the order given: in this process, or with ``--jobs``
     in worker processes (each replay is independent and deterministic: the same results)."""
     jobs = args.jobs or _cpus()
+    tables = [{kind: f"{table_dir}/{i}.{kind}.csv" for kind in _frame_table_paths(args)}
+              for i in range(len(args.recordings))]
     if jobs == 1:
-        for path in args.recordings:
-            yield _replay_one(path, overrides)
+        for path, paths in zip(args.recordings, tables):
+            yield _replay_one(path, overrides, paths)
         return
     from concurrent.futures import ProcessPoolExecutor
 
     with ProcessPoolExecutor(max_workers=min(jobs, len(args.recordings))) as pool:
-        yield from pool.map(_replay_one, args.recordings, [overrides] * len(args.recordings))
+        yield from pool.map(_replay_one, args.recordings, [overrides] * len(args.recordings),
+                            tables)
 
 
 def _many(args, overrides: dict[str, str]) -> int:
     """Check several recordings: one line (or JSON object) each; the worst exit code."""
+    import tempfile
+
     worst, summaries = EXIT_OK, []
-    for path, result in zip(args.recordings, _results(args, overrides)):
-        if isinstance(result, str):
-            print(f"error: {result}", file=sys.stderr)
-            summaries.append({"recording": path, "error": result})
-            worst = EXIT_UNUSABLE
-            continue
-        summary = SimpleNamespace(**result)
-        code = EXIT_OK if summary.match or overrides else EXIT_DIVERGED
-        worst = max(worst, code)
-        summaries.append({**result, "recording": path})
-        if summary.truncated:
-            print(f"warning: {path}: the recording was cut short (no end records); replayed "
-                  f"the {summary.frames} complete frames it holds", file=sys.stderr)
-        if not args.json:
-            cut = " (cut short)" if summary.truncated else ""
-            print(f"{path}: {_verdict(summary, overrides, short=True)}{cut}")
-    if args.json:
-        print_json(summaries)
-    if args.csv:
-        _write_table(args.csv, summaries)
+    with tempfile.TemporaryDirectory(prefix="vade-replay-") as table_dir:
+        for path, result in zip(args.recordings, _results(args, overrides, table_dir)):
+            worst = max(worst, _one_of_many(args, overrides, path, result, summaries))
+        if args.json:
+            print_json(summaries)
+        if args.csv:
+            _write_table(args.csv, summaries)
+        _join_frame_tables(args, table_dir, [s for s in summaries if "error" not in s])
     return worst
+
+
+def _join_frame_tables(args, table_dir: str, done: list[dict]) -> None:
+    """The ``--events`` and ``--poses`` tables of several recordings: a header, then each
+    replayed recording's rows in the order given (one that could not be replayed has none)."""
+    replayed = {s["recording"] for s in done}
+    for kind, path in _frame_table_paths(args).items():
+        columns, _ = _FRAME_TABLES[kind]
+        try:
+            with open(path, "w", newline="", encoding="utf-8") as out:
+                csv.writer(out).writerow(columns)
+                for i, recording in enumerate(args.recordings):
+                    part = Path(table_dir) / f"{i}.{kind}.csv"
+                    if recording in replayed and part.exists():
+                        with open(part, encoding="utf-8", newline="") as rows:
+                            shutil.copyfileobj(rows, out)
+        except OSError as exc:
+            raise ConfigError(f"cannot write the table to {path}: {exc.strerror or exc}",
+                              field=f"--{kind}") from None
+
+
+def _one_of_many(args, overrides: dict[str, str], path: str, result: dict | str,
+                 summaries: list[dict]) -> int:
+    """Report one recording of several (a line, or its summary kept for ``--json``); its
+    exit code."""
+    if isinstance(result, str):
+        print(f"error: {result}", file=sys.stderr)
+        summaries.append({"recording": path, "error": result})
+        return EXIT_UNUSABLE
+    summary = SimpleNamespace(**result)
+    summaries.append({**result, "recording": path})
+    if summary.truncated:
+        print(f"warning: {path}: the recording was cut short (no end records); replayed "
+              f"the {summary.frames} complete frames it holds", file=sys.stderr)
+    if not args.json:
+        cut = " (cut short)" if summary.truncated else ""
+        print(f"{path}: {_verdict(summary, overrides, short=True)}{cut}")
+    return EXIT_OK if summary.match or overrides else EXIT_DIVERGED
 
 
 def _verdict(summary, overrides: dict[str, str], *, short: bool = False) -> str:
@@ -202,7 +295,21 @@ def _one(args, path: str, overrides: dict[str, str]) -> int:
     if args.rerun:
         ensure_writable(args.rerun)
     progress = Progress("replaying", recording.frame_count)
-    summary = replay(recording, overrides=overrides, out=args.output, on_frame=progress.update)
+    tables = _FrameTables(path, _frame_table_paths(args), header=True)
+
+    def on_frame(item) -> None:
+        progress.update()
+        tables(item)
+
+    try:
+        summary = replay(recording, overrides=overrides, out=args.output, on_frame=on_frame)
+    except BaseException:
+        # A table of a run that did not finish is not left behind as if it had.
+        tables.close()
+        for path_of_table in _frame_table_paths(args).values():
+            Path(path_of_table).unlink(missing_ok=True)
+        raise
+    tables.close()
     progress.close()
     if summary.truncated:
         print(f"warning: {recording.path}: the recording was cut short (no end records); "

@@ -153,3 +153,85 @@ def test_a_table_that_cannot_be_written_is_named(tmp_path):
     assert result.returncode == 2
     assert result.stderr.startswith("error: ") and "analysis.csv" in result.stderr
     assert "Traceback" not in result.stderr
+
+
+def _read_csv(path):
+    import csv
+    with open(path, newline="") as stream:
+        reader = csv.DictReader(stream)
+        return tuple(reader.fieldnames), list(reader)
+
+
+def test_the_events_and_poses_of_a_run_as_tables(tmp_path):
+    """``--events`` and ``--poses``: every event of the run, in order, with its frame's time;
+    every frame's base and parts, whose numbers read back to the replayed floats bit for bit
+    (here the recording's, since the replay matches)."""
+    from vade_replay.recording import Recording
+    from vade_replay.replay import EVENT_COLUMNS, POSE_COLUMNS, recorded_records
+    golden = str(RECORDINGS / "hoist_placed.mcap")
+    events, poses = tmp_path / "events.csv", tmp_path / "poses.csv"
+    result = run_cli("vade-replay", golden, "--events", str(events), "--poses", str(poses))
+    assert result.returncode == 0, result.stderr
+    records = list(recorded_records(Recording(golden)))
+    columns, rows = _read_csv(events)
+    assert columns == EVENT_COLUMNS
+    expected = [(r.frame, e) for r in records for e in r.events]
+    assert [(int(row["frame"]), row["kind"], row["part"], row["cause"]) for row in rows] == [
+        (frame, e.kind, e.part, e.cause) for frame, e in expected]
+    for row, (frame, event) in zip(rows, expected):
+        assert float(row["time_s"]) == (records[frame].time_ns - records[0].time_ns) / 1e9
+        assert row["hand"] == getattr(event, "hand", "")
+        if event.kind == "PartReleased":
+            assert tuple(float(row[k]) for k in ("vx", "vy", "vz")) == event.linear_velocity
+    assert [row["kind"] for row in rows].count("GrabRefused") == 1
+    columns, rows = _read_csv(poses)
+    assert columns == POSE_COLUMNS
+    assert len(rows) == len(records) * 2  # the base and the ring, every frame
+    for row in rows[::37]:
+        record = records[int(row["frame"])]
+        snap = record.base if row["part"] == record.base.name else record.parts[0]
+        assert row["mode"] == snap.mode
+        assert tuple(float(row[k]) for k in ("x", "y", "z")) == snap.position
+        assert tuple(float(row[k]) for k in ("qx", "qy", "qz", "qw")) == snap.rotation_xyzw
+        assert tuple(float(row[k]) for k in ("wx", "wy", "wz")) == snap.angular_velocity
+
+
+def test_frame_tables_of_several_recordings_in_order_and_in_workers(tmp_path):
+    """Several recordings: one header, each recording's rows in the order given, none for a
+    file that could not be replayed (exit 2); the same with ``--jobs 2``."""
+    goldens = [str(RECORDINGS / f"{name}.mcap") for name in ("two_hand_placed", "drop_on_table")]
+    bad = tmp_path / "bad.mcap"
+    bad.write_bytes(b"not a recording")
+    files = [goldens[0], str(bad), goldens[1]]
+    out = {}
+    for jobs in ("1", "2"):
+        events, poses = tmp_path / f"e{jobs}.csv", tmp_path / f"p{jobs}.csv"
+        result = run_cli("vade-replay", *files, "--jobs", jobs, "--events", str(events),
+                         "--poses", str(poses), process=jobs == "2")
+        assert result.returncode == 2 and "bad.mcap" in result.stderr
+        out[jobs] = (events.read_text(), poses.read_text())
+    assert out["1"] == out["2"]
+    _, rows = _read_csv(tmp_path / "e1.csv")
+    recordings = [row["recording"] for row in rows]
+    assert recordings == sorted(recordings, key=goldens.index) and set(recordings) == set(goldens)
+    _, rows = _read_csv(tmp_path / "p1.csv")
+    assert len(rows) == 241 * 2 + 151  # two_hand_placed has a base; drop_on_table has none
+
+
+def test_frame_tables_refuse_other_outputs_and_are_not_left_by_a_failed_run(tmp_path):
+    golden = str(RECORDINGS / "drop_on_table.mcap")
+    result = run_cli("vade-replay", golden, "--events", golden)
+    assert result.returncode == 2 and "--events" in result.stderr and "refusing" in result.stderr
+    table = str(tmp_path / "t.csv")
+    result = run_cli("vade-replay", golden, "--csv", table, "--poses", table)
+    assert result.returncode == 2 and "--poses" in result.stderr
+    # A file damaged part-way: exit 2 naming it, and no table of half a run.
+    data = bytearray((RECORDINGS / "shaft_slide_off.mcap").read_bytes())
+    middle = len(data) // 2
+    data[middle:middle + 40] = bytes(b ^ 0xFF for b in data[middle:middle + 40])
+    damaged = tmp_path / "damaged.mcap"
+    damaged.write_bytes(bytes(data))
+    events = tmp_path / "events.csv"
+    result = run_cli("vade-replay", str(damaged), "--events", str(events))
+    assert result.returncode == 2 and "damaged" in result.stderr
+    assert not events.exists()

@@ -109,6 +109,48 @@ ANALYSIS_COLUMNS = ("recording", "session", "match", "first_divergence_frame", "
                     *(f"s_{mode.value}" for mode in Mode), "session_refused_grabs", "error")
 
 
+# The run frame by frame as tables (``vade-replay --events``, ``--poses``), for a study's own
+# plots and statistics: times in seconds from the first frame, SI units, floats as repr.
+EVENT_COLUMNS = ("recording", "frame", "time_s", "kind", "part", "cause", "hand", "from_mode",
+                 "to_mode", "other", "contact_time_s", "vx", "vy", "vz", "wx", "wy", "wz")
+POSE_COLUMNS = ("recording", "frame", "time_s", "part", "mode", "x", "y", "z", "qx", "qy",
+                "qz", "qw", "vx", "vy", "vz", "wx", "wy", "wz")
+
+
+def event_rows(recording: str, record: FrameRecord, first_time_ns: int) -> list[dict]:
+    """A row of ``EVENT_COLUMNS`` for each of a frame's events, in their order; a column an
+    event does not have is empty."""
+    rows = []
+    for event in record.events:
+        row = {"recording": recording, "frame": record.frame,
+               "time_s": (record.time_ns - first_time_ns) / 1e9, "kind": event.kind,
+               "part": event.part, "cause": event.cause}
+        for name in ("hand", "from_mode", "to_mode", "other"):
+            if hasattr(event, name):
+                row[name] = getattr(event, name)
+        if hasattr(event, "time_ns"):
+            row["contact_time_s"] = (getattr(event, "time_ns") - first_time_ns) / 1e9
+        if hasattr(event, "linear_velocity"):
+            v, w = getattr(event, "linear_velocity"), getattr(event, "angular_velocity")
+            row.update(vx=v[0], vy=v[1], vz=v[2], wx=w[0], wy=w[1], wz=w[2])
+        rows.append(row)
+    return rows
+
+
+def pose_rows(recording: str, record: FrameRecord, first_time_ns: int) -> list[dict]:
+    """A row of ``POSE_COLUMNS`` for the base (if any) and every part, after a frame."""
+    time_s = (record.time_ns - first_time_ns) / 1e9
+    snapshots = record.parts if record.base is None else (record.base, *record.parts)
+    rows = []
+    for s in snapshots:
+        p, q, v, w = s.position, s.rotation_xyzw, s.linear_velocity, s.angular_velocity
+        rows.append({"recording": recording, "frame": record.frame, "time_s": time_s,
+                     "part": s.name, "mode": s.mode, "x": p[0], "y": p[1], "z": p[2],
+                     "qx": q[0], "qy": q[1], "qz": q[2], "qw": q[3], "vx": v[0], "vy": v[1],
+                     "vz": v[2], "wx": w[0], "wy": w[1], "wz": w[2]})
+    return rows
+
+
 def analysis_rows(recording: str, summary: dict) -> list[dict]:
     """Rows of ``ANALYSIS_COLUMNS`` from a summary as ``RunSummary.to_dict`` gives it: the
     seconds in each state (0 for a state the part was never in), the counts, and the
