@@ -6,15 +6,16 @@ import argparse
 import csv
 import os
 import shutil
+import tempfile
 import sys
 from pathlib import Path
 from types import SimpleNamespace
-from typing import Iterator
+from typing import Iterator, TextIO
 
 from vade_replay.errors import ConfigError
 from vade_replay.recording import Recording, ensure_writable
-from vade_replay.replay import (ANALYSIS_COLUMNS, EVENT_COLUMNS, POSE_COLUMNS, analysis_rows,
-                                as_recorded, event_rows, pose_rows, replay)
+from vade_replay.replay import ANALYSIS_COLUMNS, analysis_rows, as_recorded, replay
+from vade_replay.tables import FRAME_TABLES, FrameTables, TableError, TableFile
 
 from vade_replay.errors import VadeError
 
@@ -70,19 +71,31 @@ def main(argv: list[str] | None = None) -> int:
     overrides = _overrides(args.set)
     if args.spawn and not args.rerun:
         raise ConfigError("--spawn opens the review: give --rerun OUT.rrd too", field="--spawn")
-    _check_table_paths(args)
-    for table in (args.csv, args.events, args.poses):
-        if table:
-            ensure_writable(table)  # before any replay: a study's batch fails at once
     if args.jobs < 0:
         raise ConfigError(f"--jobs takes a count of processes (0: one per CPU), got "
                           f"{args.jobs}", field="--jobs")
-    if len(args.recordings) > 1:
-        if args.output or args.rerun:
-            raise ConfigError("-o and --rerun take one recording at a time",
-                              field="-o" if args.output else "--rerun")
-        return _many(args, overrides)
-    return _one(args, args.recordings[0], overrides)
+    _check_table_paths(args)
+    if len(args.recordings) > 1 and (args.output or args.rerun):
+        raise ConfigError("-o and --rerun take one recording at a time",
+                          field="-o" if args.output else "--rerun")
+    # The tables are opened (as temporary files beside them) before any replay, so that a
+    # study's batch fails at once on one it cannot write; they replace their paths only
+    # when the whole run is done.
+    outputs: dict[str, TableFile] = {}
+    try:
+        for option, path in _table_options(args):
+            ensure_writable(path)
+            outputs[option] = TableFile(path, option)
+        if len(args.recordings) > 1:
+            code = _many(args, overrides, outputs)
+        else:
+            code = _one(args, args.recordings[0], overrides, outputs)
+        for table in outputs.values():
+            table.commit()
+        return code
+    finally:
+        for table in outputs.values():
+            table.discard()
 
 
 def _check_table_paths(args) -> None:
@@ -90,90 +103,69 @@ def _check_table_paths(args) -> None:
     nor another output of the run."""
     others = [("a recording replayed", args.recordings), ("-o", [args.output]),
               ("--rerun", [args.rerun])]
-    for option, given in (("--csv", args.csv), ("--events", args.events),
-                          ("--poses", args.poses)):
-        if given:
-            table = Path(given).resolve()
-            for other, paths in others:
-                if any(p and Path(p).resolve() == table for p in paths):
-                    raise ConfigError(f"refusing to write the table over {given}, which is "
-                                      f"also {other}", field=option)
-            others.append((option, [given]))
+    for option, given in _table_options(args):
+        table = Path(given).resolve()
+        for other, paths in others:
+            if any(p and Path(p).resolve() == table for p in paths):
+                raise ConfigError(f"refusing to write the table over {given}, which is "
+                                  f"also {other}", field=option)
+        others.append((option, [given]))
 
 
-_FRAME_TABLES = {"events": (EVENT_COLUMNS, event_rows), "poses": (POSE_COLUMNS, pose_rows)}
+def _table_options(args) -> list[tuple[str, str]]:
+    return [(option, path) for option, path in (("--csv", args.csv), ("--events", args.events),
+                                                ("--poses", args.poses)) if path]
 
 
-class _FrameTables:
-    """The ``--events`` and ``--poses`` tables of one recording's replay, written frame by
-    frame as it runs (``paths``: table kind -> file)."""
-
-    def __init__(self, recording: str, paths: dict[str, str], *, header: bool) -> None:
-        self.recording = recording
-        self.first_time_ns: int | None = None
-        self.tables = []
-        for kind, path in sorted(paths.items()):
-            columns, rows = _FRAME_TABLES[kind]
-            try:
-                stream = open(path, "w", newline="", encoding="utf-8")
-            except OSError as exc:
-                self.close()
-                raise ConfigError(f"cannot write the table to {path}: "
-                                  f"{exc.strerror or exc}", field=f"--{kind}") from None
-            writer = csv.DictWriter(stream, fieldnames=columns, restval="")
-            if header:
-                writer.writeheader()
-            self.tables.append((stream, writer, rows))
-
-    def __call__(self, item) -> None:
-        record = item.replayed
-        if self.first_time_ns is None:
-            self.first_time_ns = record.time_ns
-        for _, writer, rows in self.tables:
-            writer.writerows(rows(self.recording, record, self.first_time_ns))
-
-    def close(self) -> None:
-        for stream, _, _ in self.tables:
-            stream.close()
+def _frame_kinds(outputs: dict[str, TableFile]) -> list[str]:
+    return [kind for kind in FRAME_TABLES if f"--{kind}" in outputs]
 
 
-def _frame_table_paths(args) -> dict[str, str]:
-    return {kind: path for kind, path in (("events", args.events), ("poses", args.poses))
-            if path}
-
-
-def _write_table(path: str, summaries: list[dict]) -> None:
+def _write_table(table: TableFile, summaries: list[dict]) -> None:
     """The analysis of every replayed recording as CSV (``replay.ANALYSIS_COLUMNS``); a
     recording that could not be replayed is a row with its ``error``."""
     try:
-        with open(path, "w", newline="", encoding="utf-8") as stream:
-            writer = csv.DictWriter(stream, fieldnames=ANALYSIS_COLUMNS, restval="")
-            writer.writeheader()
-            for summary in summaries:
-                if "error" in summary:
-                    writer.writerow({"recording": summary["recording"],
-                                     "error": summary["error"]})
-                else:
-                    writer.writerows(analysis_rows(summary["recording"], summary))
+        writer = csv.DictWriter(table.stream, fieldnames=ANALYSIS_COLUMNS, restval="")
+        writer.writeheader()
+        for summary in summaries:
+            if "error" in summary:
+                writer.writerow({"recording": summary["recording"], "error": summary["error"]})
+            else:
+                writer.writerows(analysis_rows(summary["recording"], summary))
     except OSError as exc:
-        raise ConfigError(f"cannot write the table to {path}: {exc.strerror or exc}",
-                          field="--csv") from None
+        raise table.error(exc) from None
 
 
-def _replay_one(path: str, overrides: dict[str, str], tables: dict[str, str]) -> dict | str:
-    """One recording of several: its summary as ``--json`` prints it, or the description
-    of why it is unusable. Module-level and plain data, so that a worker process of
-    ``--jobs`` can run it and send it back. ``tables``: the files (kind -> path) its rows
-    of the frame tables go to, without a header."""
+def _replay_one(path: str, overrides: dict[str, str],
+                tables: dict[str, tuple[str, str]]) -> tuple[str, object]:
+    """One recording of several, in a worker process of ``--jobs``: ``("summary", its
+    summary as --json prints it)``, ``("error", why it is unusable)``, or ``("table",
+    (message, option))`` when a table could not be written (which ends the run). Its frame
+    table rows go, without a header, to ``tables`` (kind -> (temporary file, option))."""
+    streams = {}
     try:
-        frame_tables = _FrameTables(path, tables, header=False) if tables else None
-        try:
-            return replay(Recording(path), overrides=overrides, on_frame=frame_tables).to_dict()
-        finally:
-            if frame_tables:
-                frame_tables.close()
+        for kind, (file, option) in tables.items():
+            streams[kind] = (open(file, "w", newline="", encoding="utf-8"), option, file)
+        return _replay_rows(path, overrides, streams)
+    except OSError as exc:
+        return "table", (f"cannot write a temporary table ({exc.strerror or exc})",
+                         next(iter(tables.values()))[1])
+    finally:
+        for stream, _, _ in streams.values():
+            stream.close()
+
+
+def _replay_rows(path: str, overrides: dict[str, str],
+                 streams: dict[str, tuple[TextIO, str, str]]) -> tuple[str, object]:
+    """Replay one recording of several, its frame table rows to ``streams``."""
+    try:
+        frame_tables = FrameTables(path, streams, header=False) if streams else None
+        return "summary", replay(Recording(path), overrides=overrides,
+                                 on_frame=frame_tables).to_dict()
+    except TableError as exc:
+        return "table", (exc.message, exc.field)
     except VadeError as exc:
-        return exc.describe()
+        return "error", exc.describe()
 
 
 def _cpus() -> int:
@@ -184,68 +176,104 @@ def _cpus() -> int:
         return os.cpu_count() or 1
 
 
-def _results(args, overrides: dict[str, str], table_dir: str) -> Iterator[dict | str]:
-    """Each recording's result, in the order given: in this process, or with ``--jobs``
-    in worker processes (each replay is independent and deterministic: the same results)."""
-    jobs = args.jobs or _cpus()
-    tables = [{kind: f"{table_dir}/{i}.{kind}.csv" for kind in _frame_table_paths(args)}
-              for i in range(len(args.recordings))]
-    if jobs == 1:
-        for path, paths in zip(args.recordings, tables):
-            yield _replay_one(path, overrides, paths)
-        return
+def _results_here(args, overrides: dict[str, str],
+                  outputs: dict[str, TableFile]) -> Iterator[tuple[str, object]]:
+    """Each recording's result, replayed in this process, its frame table rows written
+    straight into the tables (those of a recording that fails are cut off again)."""
+    kinds = _frame_kinds(outputs)
+    for path in args.recordings:
+        tables = {kind: outputs[f"--{kind}"] for kind in kinds}
+        marks = {}
+        for kind, table in tables.items():
+            try:
+                table.stream.flush()
+                marks[kind] = table.stream.tell() if table.seekable else None
+            except OSError as exc:
+                raise table.error(exc) from None
+        result = _replay_rows(path, overrides, {kind: (t.stream, t.option, t.path)
+                                                for kind, t in tables.items()})
+        if result[0] == "error":
+            for kind, table in tables.items():
+                if marks[kind] is not None:
+                    try:
+                        table.stream.seek(marks[kind])
+                        table.stream.truncate()
+                    except OSError as exc:
+                        raise table.error(exc) from None
+        yield result
+
+
+def _results_in_workers(args, overrides: dict[str, str], outputs: dict[str, TableFile],
+                        jobs: int) -> Iterator[tuple[str, object]]:
+    """Each recording's result, in the order given, replayed ``jobs`` at a time in worker
+    processes (each replay is independent and deterministic: the same results). Workers
+    write their frame table rows into a temporary folder beside the first such table, and
+    they are appended here in order."""
     from concurrent.futures import ProcessPoolExecutor
 
-    with ProcessPoolExecutor(max_workers=min(jobs, len(args.recordings))) as pool:
-        yield from pool.map(_replay_one, args.recordings, [overrides] * len(args.recordings),
-                            tables)
+    kinds = _frame_kinds(outputs)
+    folder = tempfile.mkdtemp(prefix=".vade-replay-",
+                              dir=outputs[f"--{kinds[0]}"].target.parent) if kinds else None
+    try:
+        tables = [{kind: (f"{folder}/{i}.{kind}.csv", f"--{kind}") for kind in kinds}
+                  for i in range(len(args.recordings))]
+        pool = ProcessPoolExecutor(max_workers=min(jobs, len(args.recordings)))
+        try:
+            for result, parts in zip(pool.map(_replay_one, args.recordings,
+                                              [overrides] * len(args.recordings), tables),
+                                     tables):
+                if result[0] == "summary":
+                    for kind, (file, _) in parts.items():
+                        table = outputs[f"--{kind}"]
+                        try:
+                            with open(file, encoding="utf-8", newline="") as rows:
+                                shutil.copyfileobj(rows, table.stream)
+                        except OSError as exc:
+                            raise table.error(exc) from None
+                yield result
+        finally:
+            # A failure stops the run: what is queued is not replayed.
+            pool.shutdown(wait=True, cancel_futures=True)
+    finally:
+        if folder:
+            shutil.rmtree(folder, ignore_errors=True)
 
 
-def _many(args, overrides: dict[str, str]) -> int:
+def _many(args, overrides: dict[str, str], outputs: dict[str, TableFile]) -> int:
     """Check several recordings: one line (or JSON object) each; the worst exit code."""
-    import tempfile
-
+    for kind in _frame_kinds(outputs):
+        FrameTables("", {kind: (outputs[f"--{kind}"].stream, f"--{kind}",
+                                outputs[f"--{kind}"].path)}, header=True)
+    jobs = args.jobs or _cpus()
+    results = _results_here(args, overrides, outputs) if jobs == 1 \
+        else _results_in_workers(args, overrides, outputs, jobs)
     worst, summaries = EXIT_OK, []
-    with tempfile.TemporaryDirectory(prefix="vade-replay-") as table_dir:
-        for path, result in zip(args.recordings, _results(args, overrides, table_dir)):
+    try:
+        for path, result in zip(args.recordings, results):
             worst = max(worst, _one_of_many(args, overrides, path, result, summaries))
-        if args.json:
-            print_json(summaries)
-        if args.csv:
-            _write_table(args.csv, summaries)
-        _join_frame_tables(args, table_dir, [s for s in summaries if "error" not in s])
+    finally:
+        results.close()
+    if args.json:
+        print_json(summaries)
+    if "--csv" in outputs:
+        _write_table(outputs["--csv"], summaries)
     return worst
 
 
-def _join_frame_tables(args, table_dir: str, done: list[dict]) -> None:
-    """The ``--events`` and ``--poses`` tables of several recordings: a header, then each
-    replayed recording's rows in the order given (one that could not be replayed has none)."""
-    replayed = {s["recording"] for s in done}
-    for kind, path in _frame_table_paths(args).items():
-        columns, _ = _FRAME_TABLES[kind]
-        try:
-            with open(path, "w", newline="", encoding="utf-8") as out:
-                csv.writer(out).writerow(columns)
-                for i, recording in enumerate(args.recordings):
-                    part = Path(table_dir) / f"{i}.{kind}.csv"
-                    if recording in replayed and part.exists():
-                        with open(part, encoding="utf-8", newline="") as rows:
-                            shutil.copyfileobj(rows, out)
-        except OSError as exc:
-            raise ConfigError(f"cannot write the table to {path}: {exc.strerror or exc}",
-                              field=f"--{kind}") from None
-
-
-def _one_of_many(args, overrides: dict[str, str], path: str, result: dict | str,
+def _one_of_many(args, overrides: dict[str, str], path: str, result: tuple[str, object],
                  summaries: list[dict]) -> int:
     """Report one recording of several (a line, or its summary kept for ``--json``); its
-    exit code."""
-    if isinstance(result, str):
-        print(f"error: {result}", file=sys.stderr)
-        summaries.append({"recording": path, "error": result})
+    exit code. A table that could not be written ends the run."""
+    kind, value = result
+    if kind == "table":
+        message, option = value  # type: ignore[misc]
+        raise TableError(message, field=option)
+    if kind == "error":
+        print(f"error: {value}", file=sys.stderr)
+        summaries.append({"recording": path, "error": value})
         return EXIT_UNUSABLE
-    summary = SimpleNamespace(**result)
-    summaries.append({**result, "recording": path})
+    summary = SimpleNamespace(**value)  # type: ignore[arg-type]
+    summaries.append({**value, "recording": path})  # type: ignore[dict-item]
     if summary.truncated:
         print(f"warning: {path}: the recording was cut short (no end records); replayed "
               f"the {summary.frames} complete frames it holds", file=sys.stderr)
@@ -290,26 +318,20 @@ def _physics_note(changes: dict) -> str:
     return text
 
 
-def _one(args, path: str, overrides: dict[str, str]) -> int:
+def _one(args, path: str, overrides: dict[str, str], outputs: dict[str, TableFile]) -> int:
     recording = Recording(path)
     if args.rerun:
         ensure_writable(args.rerun)
     progress = Progress("replaying", recording.frame_count)
-    tables = _FrameTables(path, _frame_table_paths(args), header=True)
+    tables = FrameTables(path, {kind: (outputs[f"--{kind}"].stream, f"--{kind}",
+                                       outputs[f"--{kind}"].path)
+                                for kind in _frame_kinds(outputs)}, header=True)
 
     def on_frame(item) -> None:
         progress.update()
         tables(item)
 
-    try:
-        summary = replay(recording, overrides=overrides, out=args.output, on_frame=on_frame)
-    except BaseException:
-        # A table of a run that did not finish is not left behind as if it had.
-        tables.close()
-        for path_of_table in _frame_table_paths(args).values():
-            Path(path_of_table).unlink(missing_ok=True)
-        raise
-    tables.close()
+    summary = replay(recording, overrides=overrides, out=args.output, on_frame=on_frame)
     progress.close()
     if summary.truncated:
         print(f"warning: {recording.path}: the recording was cut short (no end records); "
@@ -318,8 +340,8 @@ def _one(args, path: str, overrides: dict[str, str]) -> int:
         print_json(summary.to_dict())
     else:
         print(_verdict(summary, overrides))
-    if args.csv:
-        _write_table(args.csv, [{**summary.to_dict(), "recording": path}])
+    if "--csv" in outputs:
+        _write_table(outputs["--csv"], [{**summary.to_dict(), "recording": path}])
     if args.rerun:
         from vade_replay.review import write_recording_review
 

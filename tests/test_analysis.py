@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from conftest import RECORDINGS, run_cli
@@ -196,13 +198,24 @@ def test_the_events_and_poses_of_a_run_as_tables(tmp_path):
         assert tuple(float(row[k]) for k in ("wx", "wy", "wz")) == snap.angular_velocity
 
 
+def _damaged(tmp_path):
+    """shaft_slide_off with bytes flipped half way: it fails after 120 frames."""
+    data = bytearray((RECORDINGS / "shaft_slide_off.mcap").read_bytes())
+    middle = len(data) // 2
+    data[middle:middle + 40] = bytes(b ^ 0xFF for b in data[middle:middle + 40])
+    damaged = tmp_path / "damaged.mcap"
+    damaged.write_bytes(bytes(data))
+    return damaged
+
+
 def test_frame_tables_of_several_recordings_in_order_and_in_workers(tmp_path):
     """Several recordings: one header, each recording's rows in the order given, none for a
-    file that could not be replayed (exit 2); the same with ``--jobs 2``."""
+    file that could not be replayed (exit 2), also one that failed part-way through its
+    rows; the same with ``--jobs 2``."""
     goldens = [str(RECORDINGS / f"{name}.mcap") for name in ("two_hand_placed", "drop_on_table")]
     bad = tmp_path / "bad.mcap"
     bad.write_bytes(b"not a recording")
-    files = [goldens[0], str(bad), goldens[1]]
+    files = [goldens[0], str(bad), str(_damaged(tmp_path)), goldens[1]]
     out = {}
     for jobs in ("1", "2"):
         events, poses = tmp_path / f"e{jobs}.csv", tmp_path / f"p{jobs}.csv"
@@ -225,13 +238,36 @@ def test_frame_tables_refuse_other_outputs_and_are_not_left_by_a_failed_run(tmp_
     table = str(tmp_path / "t.csv")
     result = run_cli("vade-replay", golden, "--csv", table, "--poses", table)
     assert result.returncode == 2 and "--poses" in result.stderr
-    # A file damaged part-way: exit 2 naming it, and no table of half a run.
-    data = bytearray((RECORDINGS / "shaft_slide_off.mcap").read_bytes())
-    middle = len(data) // 2
-    data[middle:middle + 40] = bytes(b ^ 0xFF for b in data[middle:middle + 40])
-    damaged = tmp_path / "damaged.mcap"
-    damaged.write_bytes(bytes(data))
-    events = tmp_path / "events.csv"
-    result = run_cli("vade-replay", str(damaged), "--events", str(events))
+    # A file damaged part-way: exit 2 naming it; no table of half a run (an existing one
+    # is kept as it was), and the regenerated recording is kept only as .partial.
+    damaged = _damaged(tmp_path)
+    events, kept = tmp_path / "events.csv", tmp_path / "kept.csv"
+    kept.write_text("an older table\n")
+    regenerated = tmp_path / "regenerated.mcap"
+    result = run_cli("vade-replay", str(damaged), "--events", str(events), "--poses", str(kept),
+                     "-o", str(regenerated))
     assert result.returncode == 2 and "damaged" in result.stderr
-    assert not events.exists()
+    assert "120 regenerated frames before it are kept in" in result.stderr
+    assert not events.exists() and kept.read_text() == "an older table\n"
+    assert not regenerated.exists() and (tmp_path / "regenerated.mcap.partial").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "damaged.mcap", "kept.csv", "regenerated.mcap.partial"]  # no temporary table left
+
+
+def test_a_table_that_cannot_be_written_stops_the_run_at_once(tmp_path):
+    """A folder that cannot hold the table: exit 2 naming the option, before any replay. A
+    table that fails while written (a full device behind a link): exit 2, one line, and
+    the path is not removed."""
+    goldens = [str(RECORDINGS / f"{name}.mcap") for name in ("drop_on_table", "hoist_placed")]
+    result = run_cli("vade-replay", *goldens, "--events", "/proc/vade-table.csv")
+    assert result.returncode == 2 and "--events" in result.stderr
+    assert result.stdout == ""  # nothing replayed
+    if Path("/dev/full").exists():
+        link = tmp_path / "full.csv"
+        link.symlink_to("/dev/full")
+        for files in (goldens[:1], goldens):
+            result = run_cli("vade-replay", *files, "--poses", str(link))
+            assert result.returncode == 2, result.stderr
+            assert "--poses" in result.stderr and "No space left" in result.stderr
+            assert "Traceback" not in result.stderr
+            assert link.is_symlink() and Path("/dev/full").is_char_device()

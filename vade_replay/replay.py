@@ -507,7 +507,9 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
 
     With ``overrides`` the scene's physics is changed first (a what-if replay); the check
     then reports where the changed run departs from the recording. With ``out`` the
-    regenerated recording is written there; the original file is never modified.
+    regenerated recording is written there (as ``out.partial``, renamed when complete; a
+    run that fails part way keeps the partial file, as ``record`` does, and says so); the
+    original file is never modified.
     """
     session, applied = apply_overrides(recording.session, overrides or {})
     scene = session.build_scene()
@@ -515,12 +517,14 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     summary = RunSummary(session.name, parts=[p.name for p in scene.parts], overrides=applied,
                          physics_changed=physics_changes(recording, scene.physics, applied))
     writer = None
+    partial = None
     if out is not None:
         if Path(out).resolve() == recording.path.resolve():
             raise ConfigError("refusing to overwrite the recording being replayed", file=str(out))
-        ensure_writable(out)
+        out = ensure_writable(out)
+        partial = ensure_writable(out.with_name(out.name + ".partial"))
         # A what-if's recording embeds the changed session, so that it replays itself.
-        writer = RecordingWriter(Path(out), session, scene,
+        writer = RecordingWriter(partial, session, scene,
                                  extra_metadata={"replayed_from": str(recording.path)},
                                  parts_encoding=recording.parts_encoding)
     first_time = None
@@ -538,9 +542,23 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
                 writer.write_frame(item.replayed, item.derived)
             if on_frame:
                 on_frame(item)
-    finally:
+    except VadeError as exc:
+        if writer is None or partial is None:
+            raise
+        writer.close()
+        if writer.frames == 0:
+            partial.unlink(missing_ok=True)  # nothing was written: leave nothing behind
+            raise
+        exc.message += (f" (the {writer.frames} regenerated frame"
+                        f"{'s' if writer.frames != 1 else ''} before it are kept in {partial})")
+        raise type(exc)(exc.message, file=exc.file, field=exc.field, frame=exc.frame) from None
+    except BaseException:
         if writer:
             writer.close()
+        raise
+    if writer and partial is not None and out is not None:
+        writer.close()
+        os.replace(partial, out)
     if summary.frames == 0:
         raise VadeError("recording holds no frames", file=str(recording.path))
     summary.match = summary.first_divergence is None

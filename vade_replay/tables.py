@@ -1,0 +1,116 @@
+"""The tables a replay writes for a study (``vade-replay --csv``, ``--events``, ``--poses``).
+
+A table is written into a temporary file beside it and moved over it only when the whole
+run is done, so that a run that fails leaves the old file (or none), never a table of half
+a run; a path that is not a regular file (a pipe, ``/dev/stdout``) is written in place and
+never removed. Any failure to write is a ``TableError``: one line naming the option.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import tempfile
+from pathlib import Path
+from typing import Callable, TextIO
+
+from .errors import ConfigError
+from .frames import FrameRecord
+from .replay import EVENT_COLUMNS, POSE_COLUMNS, event_rows, pose_rows
+
+# Table kind -> its columns and the rows of one frame.
+FRAME_TABLES: dict[str, tuple[tuple[str, ...], Callable[[str, FrameRecord, int], list[dict]]]] = {
+    "events": (EVENT_COLUMNS, event_rows), "poses": (POSE_COLUMNS, pose_rows)}
+
+
+class TableError(ConfigError):
+    """A table could not be written (its option is the field): not the recording's fault,
+    so it ends a run of several recordings rather than counting against one of them."""
+
+
+def _error(path: str, option: str, exc: OSError) -> TableError:
+    return TableError(f"cannot write the table to {path}: {exc.strerror or exc}", field=option)
+
+
+class TableFile:
+    """One output table: ``stream`` to write it, ``commit`` when the run is done, else
+    ``discard``."""
+
+    def __init__(self, path: str, option: str) -> None:
+        self.path, self.option = path, option
+        self.target = Path(path).resolve()
+        self.temp: str | None = None
+        try:
+            if self.target.exists() and not self.target.is_file():
+                self.stream: TextIO = open(self.target, "w", newline="", encoding="utf-8")
+            else:
+                fd, self.temp = tempfile.mkstemp(prefix=f".{self.target.name}.",
+                                                 suffix=".partial", dir=self.target.parent)
+                # The mode a plain open() would give (mkstemp's is owner-only).
+                mask = os.umask(0)
+                os.umask(mask)
+                os.chmod(fd, self.target.stat().st_mode & 0o777 if self.target.exists()
+                         else 0o666 & ~mask)
+                self.stream = os.fdopen(fd, "w", newline="", encoding="utf-8")
+        except OSError as exc:
+            raise _error(path, option, exc) from None
+
+    @property
+    def seekable(self) -> bool:
+        return self.temp is not None
+
+    def error(self, exc: OSError) -> TableError:
+        return _error(self.path, self.option, exc)
+
+    def commit(self) -> None:
+        try:
+            self.stream.close()
+            if self.temp is not None:
+                os.replace(self.temp, self.target)
+                self.temp = None
+        except OSError as exc:
+            self.discard()
+            raise self.error(exc) from None
+
+    def discard(self) -> None:
+        try:
+            self.stream.close()
+        except OSError:
+            pass
+        if self.temp is not None:
+            try:
+                os.unlink(self.temp)  # our own temporary file, never the user's path
+            except OSError:
+                pass
+            self.temp = None
+
+
+class FrameTables:
+    """The ``--events`` and ``--poses`` rows of one recording's replay, written frame by
+    frame as it runs (a ``replay(on_frame=...)`` callback). ``outputs``: table kind ->
+    (stream, option, the path to name in an error)."""
+
+    def __init__(self, recording: str, outputs: dict[str, tuple[TextIO, str, str]], *,
+                 header: bool) -> None:
+        self.recording = recording
+        self.first_time_ns: int | None = None
+        self.tables = []
+        for kind, (stream, option, path) in sorted(outputs.items()):
+            columns, rows = FRAME_TABLES[kind]
+            writer = csv.DictWriter(stream, fieldnames=columns, restval="")
+            self.tables.append((writer, rows, option, path))
+            if header:
+                try:
+                    writer.writeheader()
+                except OSError as exc:
+                    raise _error(path, option, exc) from None
+
+    def __call__(self, item) -> None:
+        record = item.replayed
+        if self.first_time_ns is None:
+            self.first_time_ns = record.time_ns
+        for writer, rows, option, path in self.tables:
+            try:
+                writer.writerows(rows(self.recording, record, self.first_time_ns))
+            except OSError as exc:
+                raise _error(path, option, exc) from None
