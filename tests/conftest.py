@@ -89,3 +89,18 @@ def run_cli(*args: str, env: dict | None = None, process: bool = False) -> CliRe
 @pytest.fixture
 def recordings_dir() -> Path:
     return RECORDINGS
+
+
+G_FREE = 9.8 * 0.25  # the default scaled gravity of free flight
+
+
+def assert_falls_from_rest(records, released_frame: int, z0: float) -> None:
+    """The first part, let go at rest in ``released_frame`` at height ``z0``, falls
+    z(t) = z0 - g t^2 / 2 (default free-flight gravity) in every frame it flies after."""
+    import pytest
+    t0_ns = released_frame * 10**9 // 60
+    flying = [r for r in records if r.parts[0].mode == "INSPACE" and r.time_ns > t0_ns]
+    assert flying
+    for r in flying:
+        t = (r.time_ns - t0_ns) * 1e-9
+        assert r.parts[0].position[2] == pytest.approx(z0 - 0.5 * G_FREE * t * t, abs=1e-9)

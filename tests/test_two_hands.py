@@ -11,11 +11,11 @@ import math
 
 import pytest
 
-from conftest import RECORDINGS, run_cli, run_records, session_doc
+from conftest import (RECORDINGS, assert_falls_from_rest, run_cli, run_records,
+                      session_doc)
 from vade_replay import spatial as sp
 from vade_replay.errors import SessionError
 
-G_FREE = 9.8 * 0.25  # the default scaled gravity of free flight
 # 0.4 x 0.2 x 0.1 m at 1250 kg/m^3: 10 kg, on the table (top at 0.74).
 CRATE = {"name": "crate", "shape": {"type": "box", "size": [0.4, 0.2, 0.1]}, "density": 1250,
          "pose": {"position": [0.0, 0.0, 0.79]}}
@@ -112,12 +112,7 @@ def test_either_hand_opening_lets_go_and_it_falls_along_the_parabola():
     # Still for 0.4 s before the left hand opened: it leaves at rest and falls
     # z(t) = z0 - g t^2 / 2 (the right hand, still closed, cannot hold it alone).
     assert max(abs(v) for v in released[0].linear_velocity) < 1e-12
-    t0_ns = changes[1][0] * 10**9 // 60
-    z0 = 0.79 + UP_Z - 0.8
-    for r in records:
-        if r.parts[0].mode == "INSPACE" and r.time_ns > t0_ns:
-            t = (r.time_ns - t0_ns) * 1e-9
-            assert r.parts[0].position[2] == pytest.approx(z0 - 0.5 * G_FREE * t * t, abs=1e-9)
+    assert_falls_from_rest(records, changes[1][0], 0.79 + UP_Z - 0.8)
     assert records[-1].parts[0].position[2] == pytest.approx(0.79, abs=2e-4)
 
 
