@@ -203,6 +203,18 @@ def _results_here(args, overrides: dict[str, str],
         yield result
 
 
+def _quiet_on_interrupt() -> None:
+    """In a worker: Ctrl-C (sent to the whole process group) ends it at once and quietly;
+    the parent process reports "interrupted" (exit 130)."""
+    import signal
+
+    signal.signal(signal.SIGINT, _exit_interrupted)
+
+
+def _exit_interrupted(*_: object) -> None:
+    os._exit(130)
+
+
 def _results_in_workers(args, overrides: dict[str, str], outputs: dict[str, TableFile],
                         jobs: int) -> Iterator[tuple[str, object]]:
     """Each recording's result, in the order given, replayed ``jobs`` at a time in worker
@@ -217,7 +229,8 @@ def _results_in_workers(args, overrides: dict[str, str], outputs: dict[str, Tabl
     try:
         tables = [{kind: (f"{folder}/{i}.{kind}.csv", f"--{kind}") for kind in kinds}
                   for i in range(len(args.recordings))]
-        pool = ProcessPoolExecutor(max_workers=min(jobs, len(args.recordings)))
+        pool = ProcessPoolExecutor(max_workers=min(jobs, len(args.recordings)),
+                                   initializer=_quiet_on_interrupt)
         try:
             for result, parts in zip(pool.map(_replay_one, args.recordings,
                                               [overrides] * len(args.recordings), tables),

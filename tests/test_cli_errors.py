@@ -359,3 +359,28 @@ def test_a_damaged_chunk_is_an_error_naming_where_not_a_short_recording(tmp_path
     path = tmp_path / "damaged.mcap"
     path.write_bytes(bytes(data))
     _assert_clean_error(run_cli("vade-replay", str(path)), "damaged.mcap", "damaged after")
+
+
+def test_o_writes_through_a_link_keeps_the_mode_and_never_over_its_input(tmp_path):
+    """``-o`` is written as OUT.partial beside the file a link points to, and moved over it:
+    the link stays a link, the file keeps its mode. A recording named as the output's
+    .partial is refused (it would be overwritten while it is read)."""
+    import shutil
+    import stat
+    golden = RECORDINGS / "drop_on_table.mcap"
+    target = tmp_path / "target.mcap"
+    target.write_bytes(b"an older file")
+    target.chmod(0o640)
+    link = tmp_path / "link.mcap"
+    link.symlink_to(target)
+    result = run_cli("vade-replay", str(golden), "-o", str(link))
+    assert result.returncode == 0, result.stderr
+    assert link.is_symlink() and stat.S_IMODE(target.stat().st_mode) == 0o640
+    assert run_cli("vade-replay", str(target)).returncode == 0  # a complete recording
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["link.mcap", "target.mcap"]
+    shutil.copy(golden, tmp_path / "x.mcap.partial")
+    result = run_cli("vade-replay", str(tmp_path / "x.mcap.partial"), "-o",
+                     str(tmp_path / "x.mcap"))
+    assert result.returncode == 2 and "refusing" in result.stderr
+    assert (tmp_path / "x.mcap.partial").read_bytes() == golden.read_bytes()
+    assert not (tmp_path / "x.mcap").exists()

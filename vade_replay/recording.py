@@ -9,9 +9,11 @@ most the last second.
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import platform
+import stat
 import struct
 from dataclasses import asdict, dataclass
 from functools import cached_property
@@ -145,6 +147,45 @@ def ensure_writable(path: str | Path) -> Path:
     return path
 
 
+def in_place(path: Path) -> bool:
+    """Whether an output is written where it is rather than beside it and moved there: a
+    pipe, a device, anything not a regular file (or under /dev or /proc, where a path may
+    stand for this process's own output)."""
+    if str(path.absolute()).startswith(("/dev/", "/proc/")):
+        return True
+    try:
+        return not stat.S_ISREG(os.stat(path).st_mode)
+    except FileNotFoundError:
+        return False
+    except OSError:
+        return False
+
+
+def partial_output(out: str | Path) -> tuple[Path, Path | None]:
+    """Where a recording meant for ``out`` is written: ``(file to write, file it becomes)``.
+    A regular file (or a new one) is written as ``NAME.partial`` beside the file (beside
+    the file a link points to) and becomes it when complete (``complete_output``); a pipe
+    or a device is written in place (``(out, None)``)."""
+    out = ensure_writable(out)
+    if in_place(out):
+        return out, None
+    target = out.resolve()
+    return ensure_writable(target.with_name(target.name + ".partial")), target
+
+
+def complete_output(partial: Path, target: Path | None) -> None:
+    """Move a complete ``partial`` over its ``target`` (keeping the mode of a file there)."""
+    if target is None:
+        return
+    try:
+        if target.exists():
+            os.chmod(partial, stat.S_IMODE(os.stat(target).st_mode))
+        os.replace(partial, target)
+    except OSError as exc:
+        raise RecordingError(f"cannot finish writing it ({exc.strerror or exc}); what was "
+                             f"written is in {partial}", file=str(target)) from None
+
+
 class RecordingWriter:
     """Writes one session: attachments and metadata first, then frame after frame."""
 
@@ -209,10 +250,19 @@ class RecordingWriter:
         """Write the summary and close; a closed file is complete and indexed."""
         if self._stream.closed:
             return
-        self._writer.finish()
-        self._stream.flush()
-        os.fsync(self._stream.fileno())
-        self._stream.close()
+        try:
+            self._writer.finish()
+            self._stream.flush()
+            try:
+                os.fsync(self._stream.fileno())
+            except OSError as exc:
+                if exc.errno not in (errno.EINVAL, errno.EROFS):  # a pipe, a device
+                    raise
+            self._stream.close()
+        except OSError as exc:
+            self._stream.close()
+            raise RecordingError(f"cannot finish writing it: {exc.strerror or exc}",
+                                 file=str(self.path)) from None
 
     def __enter__(self) -> "RecordingWriter":
         return self

@@ -11,7 +11,6 @@ from __future__ import annotations
 import copy
 import json
 import math
-import os
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Iterable, Iterator
@@ -22,8 +21,8 @@ from .collision import CollisionWorld
 from .errors import ConfigError, RecordingError, SessionError, VadeError
 from .frames import FrameRecord, TrackerFrame
 from .modes import Mode
-from .recording import (RecordedFrame, Recording, RecordingWriter, ensure_writable,
-                        physics_metadata)
+from .recording import (RecordedFrame, Recording, RecordingWriter, complete_output,
+                        partial_output, physics_metadata)
 from .scene import LENGTH_FIELDS, PAPER_DEFAULTS, Physics, Scene
 from .session import Session, parse, strict_json
 from .step import Stepper
@@ -346,8 +345,7 @@ def record(session: Session, out: str | Path, *,
     way, the partial file is closed properly (readable, indexed) and kept, and the error is
     raised with the frame it happened at.
     """
-    out = ensure_writable(out)
-    partial = ensure_writable(out.with_name(out.name + ".partial"))
+    partial, target = partial_output(out)
     scene = session.build_scene()
     collision = CollisionWorld(scene)
     summary = RunSummary(session.name, parts=[p.name for p in scene.parts])
@@ -366,7 +364,8 @@ def record(session: Session, out: str | Path, *,
     except VadeError as exc:
         writer.close()
         if writer.frames == 0:
-            partial.unlink(missing_ok=True)  # nothing was recorded: leave nothing behind
+            if target is not None:
+                partial.unlink(missing_ok=True)  # nothing was recorded: leave nothing behind
             raise
         if exc.frame is None and exc.field is None and frame is not None:
             exc.frame = frame + 1  # the frame being made when it failed
@@ -377,7 +376,7 @@ def record(session: Session, out: str | Path, *,
         writer.close()
         raise
     writer.close()
-    os.replace(partial, out)
+    complete_output(partial, target)
     summary.counters = dict(collision.stats)
     return summary
 
@@ -517,12 +516,14 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     summary = RunSummary(session.name, parts=[p.name for p in scene.parts], overrides=applied,
                          physics_changed=physics_changes(recording, scene.physics, applied))
     writer = None
-    partial = None
+    partial = target = None
     if out is not None:
         if Path(out).resolve() == recording.path.resolve():
             raise ConfigError("refusing to overwrite the recording being replayed", file=str(out))
-        out = ensure_writable(out)
-        partial = ensure_writable(out.with_name(out.name + ".partial"))
+        if Path(str(out) + ".partial").resolve() == recording.path.resolve():
+            raise ConfigError("refusing to write over the recording being replayed (it is "
+                              "this output's .partial file)", file=str(out))
+        partial, target = partial_output(out)
         # A what-if's recording embeds the changed session, so that it replays itself.
         writer = RecordingWriter(partial, session, scene,
                                  extra_metadata={"replayed_from": str(recording.path)},
@@ -547,7 +548,8 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
             raise
         writer.close()
         if writer.frames == 0:
-            partial.unlink(missing_ok=True)  # nothing was written: leave nothing behind
+            if target is not None:
+                partial.unlink(missing_ok=True)  # nothing was written: leave nothing behind
             raise
         exc.message += (f" (the {writer.frames} regenerated frame"
                         f"{'s' if writer.frames != 1 else ''} before it are kept in {partial})")
@@ -556,9 +558,13 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
         if writer:
             writer.close()
         raise
-    if writer and partial is not None and out is not None:
+    if writer and partial is not None:
         writer.close()
-        os.replace(partial, out)
+        if summary.frames == 0:
+            if target is not None:
+                partial.unlink(missing_ok=True)  # nothing was written: leave nothing behind
+        else:
+            complete_output(partial, target)
     if summary.frames == 0:
         raise VadeError("recording holds no frames", file=str(recording.path))
     summary.match = summary.first_divergence is None

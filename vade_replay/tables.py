@@ -16,6 +16,7 @@ from typing import Callable, TextIO
 
 from .errors import ConfigError
 from .frames import FrameRecord
+from .recording import in_place
 from .replay import EVENT_COLUMNS, POSE_COLUMNS, event_rows, pose_rows
 
 # Table kind -> its columns and the rows of one frame.
@@ -41,8 +42,8 @@ class TableFile:
         self.target = Path(path).resolve()
         self.temp: str | None = None
         try:
-            if self.target.exists() and not self.target.is_file():
-                self.stream: TextIO = open(self.target, "w", newline="", encoding="utf-8")
+            if in_place(Path(path)):
+                self.stream: TextIO = open(path, "w", newline="", encoding="utf-8")
             else:
                 fd, self.temp = tempfile.mkstemp(prefix=f".{self.target.name}.",
                                                  suffix=".partial", dir=self.target.parent)
