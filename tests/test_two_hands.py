@@ -385,7 +385,7 @@ def test_wrists_counter_turning_about_the_line_do_not_make_it_jump():
 @pytest.mark.parametrize("nearer", ["left_hand", "right_hand"])
 def test_a_light_part_both_hands_close_on_goes_to_the_nearer(nearer):
     """Both hands close in one frame on a peg between them: the nearer hand takes it (the
-    left hand used to, acting first), the other closes on nothing it can take."""
+    left hand used to, acting first); the other is refused, the peg being in the first."""
     peg = {"name": "peg", "shape": {"type": "box", "size": [0.02, 0.02, 0.04]}, "density": 2700,
            "pose": {"position": [0.0, 0.0, 0.76]}}
     near, far = 0.025, 0.045
@@ -395,4 +395,50 @@ def test_a_light_part_both_hands_close_on_goes_to_the_nearer(nearer):
     records = run_records(_doc(left=hand(lx), right=hand(rx), parts=[peg], duration_s=0.3))
     grabbed = [e for e in _events(records, "PartGrabbed", "GrabRefused")]
     assert grabbed[0] == (6, "PartGrabbed", "peg", "grabbed", nearer)
-    assert [e[1:4] for e in grabbed[1:]] == [("GrabRefused", "", "nothing_in_reach")]
+    assert [e[1:4] for e in grabbed[1:]] == [("GrabRefused", "peg", "held_by_other_hand")]
+
+
+def _fixed_base_peg_doc(left, right, duration_s=1.5):
+    base = {"name": "plate", "fixed": True, "shape": {"type": "box", "size": [0.2, 0.2, 0.02]},
+            "pose": {"position": [-0.5, 0.3, 0.75]}}
+    peg = {"name": "peg", "shape": {"type": "box", "size": [0.04, 0.04, 0.08]},
+           "density": 2700, "pose": {"position": [0.0, 0.0, 0.78]}}  # 0.35 kg
+    return _doc(left=left, right=right, parts=[peg], base=base, duration_s=duration_s)
+
+
+def test_a_part_is_handed_from_one_hand_to_the_other():
+    """With the left hand free (a fixed base), the right hand takes the peg and lifts it; the
+    left hand closes on it and takes it over (``handed_over``: no release by the right, no
+    change of mode), carries it rigidly, and lets go of it. The right hand opening after the
+    hand-over lets go of nothing."""
+    right = [{"t": 0.0, "position": [0.0, 0.0, 0.8], "grip": False}, {"t": 0.1, "grip": True},
+             {"t": 0.2, "position": [0.0, 0.0, 0.8]}, {"t": 0.5, "position": [0.0, 0.0, 1.0]},
+             {"t": 0.8, "grip": False}, {"t": 1.0, "position": [0.3, -0.3, 1.0]}]
+    left = [{"t": 0.0, "position": [-0.3, 0.3, 1.0], "grip": False},
+            {"t": 0.5, "position": [0.0, 0.03, 1.0]}, {"t": 0.6, "grip": True},
+            {"t": 0.7, "position": [0.0, 0.03, 1.0]}, {"t": 1.1, "position": [-0.2, 0.03, 1.2]},
+            {"t": 1.3, "grip": False}]
+    records = run_records(_fixed_base_peg_doc(left, right))
+    assert _events(records, "PartGrabbed", "PartReleased", "GrabRefused") == [
+        (6, "PartGrabbed", "peg", "grabbed", "right_hand"),
+        (36, "PartGrabbed", "peg", "handed_over", "left_hand"),
+        (78, "PartReleased", "peg", "released", "left_hand")]
+    assert [(e.from_mode, e.to_mode) for r in records for e in r.events
+            if e.kind == "ModeChanged"][:2] == [("STATIC", "INHAND"), ("INHAND", "INSPACE")]
+    # From the hand-over the peg follows the left hand at the offset it was taken at.
+    at = records[36]
+    offset = sp.sub(at.parts[0].position, at.inputs.device("left_hand").position)
+    for r in records[37:78]:
+        hand = r.inputs.device("left_hand").position
+        assert r.parts[0].position == pytest.approx(sp.add(hand, offset), abs=1e-12)
+
+
+def test_two_hands_closing_on_one_light_part_in_one_frame_do_not_pass_it_on():
+    """The nearer hand takes the peg; the other, closing in the same frame, is refused
+    ``held_by_other_hand`` (it does not take it over in the frame it was taken)."""
+    def hand(x):
+        return [{"t": 0.0, "position": [x, 0.0, 0.78], "grip": False}, {"t": 0.1, "grip": True}]
+    records = run_records(_fixed_base_peg_doc(hand(-0.03), hand(0.035), duration_s=0.4))
+    assert _events(records, "PartGrabbed", "GrabRefused") == [
+        (6, "PartGrabbed", "peg", "grabbed", "left_hand"),
+        (6, "GrabRefused", "peg", "held_by_other_hand", "right_hand")]

@@ -45,7 +45,8 @@ class ModeChanged(Event):
 
 @dataclass(frozen=True, slots=True)
 class PartGrabbed(Event):
-    """A hand closed on a part (``grabbed``, or ``caught`` in flight), or a tool attached
+    """A hand closed on a part (``grabbed``, ``caught`` in flight, or ``handed_over`` out of
+    the other hand), or a tool attached
     it (``attached_to_tool``); ``hand`` is the hand's or the tool's device, or
     ``both_hands`` for a part too heavy for one hand that both hands took together."""
 
@@ -58,7 +59,8 @@ class PartGrabbed(Event):
 @dataclass(frozen=True, slots=True)
 class GrabRefused(Event):
     """A hand or a tool closed but took nothing: nothing in reach, too heavy for one hand
-    (the other not closed on it too), for two hands, or for the tool, or held by a tool.
+    (the other not closed on it too), for two hands, or for the tool, or held by a tool or
+    by the other hand.
 
     ``part`` is the nearest candidate, or empty when nothing is in reach.
     """

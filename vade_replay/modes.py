@@ -40,6 +40,9 @@ class Cause(str, Enum):
     LIFTED_OFF = "gravity_lifts_off"     # base turned so gravity pulls the part off the plane
     REACHED_FINAL_POSE = "reached_final_pose"
     ATTACHED_TO_TOOL = "attached_to_tool"
+    # A hand took the part out of the other hand: a PartGrabbed, not a transition (INHAND
+    # either way).
+    HANDED_OVER = "handed_over"
     DETACHED_FROM_TOOL = "detached_from_tool"
     NUMERICAL_FAULT = "numerical_fault"  # a NaN or blow-up stopped the part
 

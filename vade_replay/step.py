@@ -58,6 +58,7 @@ class _Frame:
     awake: tuple[int, ...] = ()        # parts not at rest on the table, at the frame start
     events: list[Event] = field(default_factory=list, init=False)
     modes_changed: bool = field(default=False, init=False)
+    taken: list[int] = field(default_factory=list, init=False)  # parts grabbed this frame
 
     def __init__(self, scene: Scene, collision: CollisionWorld, inputs: TrackerFrame,
                  t_prev_ns: int, parts: list[PartState], *, base_pose: sp.Pose | None = None,
@@ -75,6 +76,7 @@ class _Frame:
         self.awake = awake
         self.events = []
         self.modes_changed = False
+        self.taken = []
 
     @property
     def dt_s(self) -> float:
@@ -224,8 +226,8 @@ def _grabs(f: _Frame, state: WorldState) -> None:
         # equal distances the right), so a part both reach goes to the nearer hand, and a
         # gesture and its mirror image give the same result.
         radius = f.scene.physics.grab_radius
-        left_d = _nearest(f, f.hands[LEFT].position, radius, _GRABBABLE)[1]
-        right_d = _nearest(f, f.hands[RIGHT].position, radius, _GRABBABLE)[1]
+        left_d = _nearest(f, f.hands[LEFT].position, radius, _GRABBABLE, RIGHT)[1]
+        right_d = _nearest(f, f.hands[RIGHT].position, radius, _GRABBABLE, LEFT)[1]
         if left_d < right_d:
             closing = [h for h in closing if h != RIGHT] + [RIGHT]
         else:
@@ -258,19 +260,23 @@ def _distance_to_box(body: Body, pose: sp.Pose, point: sp.Vec3) -> float:
     return math.sqrt(gap)
 
 
-def _nearest(f: _Frame, position: sp.Vec3, radius: float,
-             grabbable: tuple) -> tuple[int, float, str]:
+def _nearest(f: _Frame, position: sp.Vec3, radius: float, grabbable: tuple,
+             other_hand: str = "") -> tuple[int, float, str, str]:
     """The part a grip closing at ``position`` takes: the index of the grabbable part whose
-    bounding box is nearest, within ``radius`` (-1: none), its distance (inf: none), and the
-    nearest part in reach that a tool holds ("": none)."""
+    bounding box is nearest, within ``radius`` (-1: none), its distance (inf: none), and
+    the nearest part in reach that it cannot take with why ("", "": none): on a tool, or in
+    a hand that holds it with the other or took it in this frame. A hand (``other_hand``:
+    the other one) also takes a part out of the other hand (handed over)."""
     best, best_d = -1, math.inf
     best_name = ""
-    on_tool = ""
-    on_tool_d = math.inf
+    held, held_cause = "", ""
+    held_d = math.inf
     hx, hy, hz = position
     stats = f.collision.stats
     for index, part in enumerate(f.parts):
-        if part.mode not in grabbable and part.mode is not ONTOOL:
+        mode = part.mode
+        takeable = mode in grabbable
+        if not takeable and mode is not ONTOOL and not (other_hand and mode is INHAND):
             continue
         # Bounding sphere about the part frame's origin first: most parts are far away.
         reach = f.scene.parts[index].reach_from_origin + radius
@@ -279,13 +285,21 @@ def _nearest(f: _Frame, position: sp.Vec3, radius: float,
         if (px - hx) ** 2 + (py - hy) ** 2 + (pz - hz) ** 2 > reach * reach:
             continue
         d = _distance_to_box(f.scene.parts[index], part.pose, position)
-        if d <= radius:
-            if part.mode is ONTOOL:
-                if d < on_tool_d:
-                    on_tool, on_tool_d = part.name, d
-            elif d < best_d or (d == best_d and part.name < best_name):
+        if d > radius:
+            continue
+        cause = "held_by_tool" if mode is ONTOOL else ""
+        if not takeable and mode is INHAND:
+            # In the other hand since before this frame: handed over; else it stays put.
+            if cast(Held, part.motion).hand == other_hand and index not in f.taken:
+                takeable = True
+            else:
+                cause = "held_by_other_hand"
+        if takeable:
+            if d < best_d or (d == best_d and part.name < best_name):
                 best, best_d, best_name = index, d, part.name
-    return best, best_d, on_tool
+        elif d < held_d:
+            held, held_cause, held_d = part.name, cause, d
+    return best, best_d, held, held_cause
 
 
 def _grab(f: _Frame, hand: str) -> None:
@@ -295,17 +309,28 @@ def _grab(f: _Frame, hand: str) -> None:
     radius = physics.grab_radius if tool is None else tool.grab_radius
     hand_pose = f.hands[hand]
     frame = f.inputs.frame
-    index, _, on_tool = _nearest(f, hand_pose.position, radius,
-                                 _GRABBABLE if tool is None else _TOOL_GRABBABLE)
+    index, _, refused, refused_cause = _nearest(
+        f, hand_pose.position, radius, _GRABBABLE if tool is None else _TOOL_GRABBABLE,
+        _other(hand) if tool is None else "")
     if index < 0:
-        if on_tool:
-            f.events.append(GrabRefused(frame, on_tool, "held_by_tool", hand))
+        if refused:
+            f.events.append(GrabRefused(frame, refused, refused_cause, hand))
         else:
             f.events.append(GrabRefused(frame, "", "nothing_in_reach", hand))
         return
     body = f.scene.parts[index]
     name = body.name
     part = f.parts[index]
+    if tool is None and part.mode is INHAND:
+        # Out of the other hand: the same mode, a new grip (no release by the other hand);
+        # its pose history goes with it, so the release-velocity fit runs on unbroken.
+        f.parts[index] = PartState(name, INHAND, part.pose, part.linear_velocity,
+                                   part.angular_velocity,
+                                   Held(hand, hand_pose.inverse().compose(part.pose),
+                                        cast(Held, part.motion).history))
+        f.taken.append(index)
+        f.events.append(PartGrabbed(frame, name, Cause.HANDED_OVER.value, hand))
+        return
     grip = hand  # the grip that takes it: the hand, the tool, or both hands
     hand_from_part = hand_pose.inverse().compose(part.pose)
     grasp: tuple = ()
@@ -334,6 +359,7 @@ def _grab(f: _Frame, hand: str) -> None:
     cm = part.pose.apply(body.center_of_mass)
     held = Held(grip, hand_from_part, ((f.t_ns, cm, part.pose.rotation),), grasp)
     f.change_mode(index, PartState(name, mode, part.pose, sp.ZERO3, sp.ZERO3, held), cause)
+    f.taken.append(index)
     f.events.append(PartGrabbed(frame, name, cause.value, grip))
 
 
@@ -359,8 +385,8 @@ def _other_hand_on(f: _Frame, hand: str, index: int) -> bool:
             return False
     if not sp.norm(sp.sub(f.hands[other].position, f.hands[hand].position)) >= _TWO_HAND_MIN:
         return False
-    nearest, _, _ = _nearest(f, f.hands[other].position, f.scene.physics.grab_radius,
-                             _GRABBABLE)
+    nearest, _, _, _ = _nearest(f, f.hands[other].position, f.scene.physics.grab_radius,
+                                _GRABBABLE)
     return nearest == index
 
 
