@@ -442,3 +442,51 @@ def test_two_hands_closing_on_one_light_part_in_one_frame_do_not_pass_it_on():
     assert _events(records, "PartGrabbed", "GrabRefused") == [
         (6, "PartGrabbed", "peg", "grabbed", "left_hand"),
         (6, "GrabRefused", "peg", "held_by_other_hand", "right_hand")]
+
+
+def test_a_pass_within_one_frame_is_a_hand_over_too():
+    """The right hand opens in the frame the left closes on the peg: a hand-over (a review
+    found a release and a catch, the velocity fit reset, where one frame apart it was a
+    hand-over)."""
+    right = [{"t": 0.0, "position": [0.0, 0.0, 0.8], "grip": False}, {"t": 0.1, "grip": True},
+             {"t": 0.2, "position": [0.0, 0.0, 0.8]}, {"t": 0.5, "position": [0.0, 0.0, 1.0]},
+             {"t": 0.6, "grip": False}, {"t": 1.0, "position": [0.3, -0.3, 1.0]}]
+    left = [{"t": 0.0, "position": [-0.3, 0.3, 1.0], "grip": False},
+            {"t": 0.5, "position": [0.0, 0.03, 1.0]}, {"t": 0.6, "grip": True},
+            {"t": 1.0, "position": [0.0, 0.03, 1.0]}]
+    records = run_records(_fixed_base_peg_doc(left, right, duration_s=1.0))
+    assert _events(records, "PartGrabbed", "PartReleased", "GrabRefused") == [
+        (6, "PartGrabbed", "peg", "grabbed", "right_hand"),
+        (36, "PartGrabbed", "peg", "handed_over", "left_hand")]
+    assert records[-1].parts[0].mode == "INHAND"
+
+
+def test_a_hand_over_keeps_the_pose_history_for_the_release_velocity():
+    """Both hands move alike (the left 3 cm beside the right), speeding up from 0.5 to 1.5
+    m/s just before the left takes the peg over and lets go a frame later: the release
+    velocity is that of the same motion let go by the right hand alone (the fit's window
+    reaches back across the hand-over, over the change of speed)."""
+    def x(t):  # still, then 0.5 m/s from 0.2 s, then 1.5 m/s from 0.6 s
+        return 0.0 if t <= 0.2 else 0.5 * (t - 0.2) if t <= 0.6 else 0.2 + 1.5 * (t - 0.6)
+
+    def hand(dy, close_t, open_t):
+        # Every keyframe has its position (a keyframe without one holds the last).
+        keys = [{"t": 0.0, "grip": False}, {"t": close_t, "grip": True}, {"t": 0.2},
+                {"t": 0.6}, {"t": 0.8}, {"t": open_t, "grip": False}]
+        return sorted(({**k, "position": [x(k["t"]), dy, 0.8]} for k in keys),
+                      key=lambda k: k["t"])
+    # The left hand closes at frame 38 and opens at frame 39; the speed changed at frame 36.
+    passed = run_records(_fixed_base_peg_doc(hand(0.03, 0.62, 0.65), hand(0.0, 0.1, 0.7),
+                                             duration_s=0.8))
+    alone = run_records(_fixed_base_peg_doc([{"t": 0.0, "position": [-0.4, 0.3, 1.0],
+                                              "grip": False}],
+                                            hand(0.0, 0.1, 0.65), duration_s=0.8))
+    assert _events(passed, "PartGrabbed")[1][1:] == ("PartGrabbed", "peg", "handed_over",
+                                                     "left_hand")
+    (v_passed,) = [e.linear_velocity for r in passed for e in r.events
+                   if e.kind == "PartReleased"]
+    (v_alone,) = [e.linear_velocity for r in alone for e in r.events
+                  if e.kind == "PartReleased"]
+    assert v_passed == pytest.approx(v_alone, abs=1e-9)
+    # The fit spans the change of speed (a history begun at the hand-over would give 1.5).
+    assert abs(v_alone[0] - 1.5) > 0.1

@@ -211,7 +211,25 @@ def _releases(f: _Frame, state: WorldState) -> None:
                 holder = cast(Held, part.motion).hand
                 # A part in both hands is too heavy for either alone: one opening lets go.
                 if holder == hand or (holder == BOTH_HANDS and (hand == LEFT or hand == RIGHT)):
+                    if holder == hand and _taken_over(f, state, hand, index):
+                        continue  # the other hand, closing on it now, takes it over
                     _release(f, index, holder)
+
+
+def _taken_over(f: _Frame, state: WorldState, hand: str, index: int) -> bool:
+    """Whether the other hand closes in this frame with the part ``hand`` lets go of as the
+    part nearest it: a pass from hand to hand within one frame is a hand-over too (the
+    grab stage makes it), not a release and a catch."""
+    if hand != LEFT and hand != RIGHT:
+        return False
+    other = _other(hand)
+    if dict(state.grips).get(other, False) or not f.grips.get(other, False) \
+            or other not in f.hands \
+            or (other == LEFT and f.scene.base is not None and not f.scene.base_fixed):
+        return False
+    nearest = _nearest(f, f.hands[other].position, f.scene.physics.grab_radius, _GRABBABLE,
+                       hand)[0]
+    return nearest == index
 
 
 def _grabs(f: _Frame, state: WorldState) -> None:
