@@ -210,6 +210,22 @@ def test_a_what_if_with_a_weaker_tool_names_where_the_lift_fails(tmp_path):
     assert (ring["grabs"], ring["tool_grabs"], ring["two_hand_grabs"]) == (1, 1, 0)
 
 
+def test_a_what_ifs_table_rows_name_its_changes(tmp_path):
+    """In ``--csv``, a what-if's rows carry its changes (a plain replay's are empty)."""
+    import csv
+    table = tmp_path / "t.csv"
+    golden = str(RECORDINGS / "hoist_placed.mcap")
+    result = run_cli("vade-replay", golden, "--csv", str(table), "--set",
+                     "tools.hoist.max_mass_kg=10", "--set", "physics.gravity_scale_free=0.3")
+    assert result.returncode == 0, result.stderr
+    (row,) = list(csv.DictReader(table.open(newline="")))
+    assert row["overrides"] == "physics.gravity_scale_free=0.3; tools.hoist.max_mass_kg=10"
+    assert row["match"] == "False"
+    assert run_cli("vade-replay", golden, "--csv", str(table)).returncode == 0
+    (row,) = list(csv.DictReader(table.open(newline="")))
+    assert row["overrides"] == "" and row["match"] == "True"
+
+
 @pytest.mark.parametrize("key, value, field", [
     ("tools.crane.max_mass_kg", "10", "tools.crane.max_mass_kg"),  # no such tool
     ("tools.hoist.colour", "10", "tools[0].colour"),               # no such field

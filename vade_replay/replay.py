@@ -105,7 +105,8 @@ PART_COUNTS = ("grabs", "catches", "releases", "drops", "slid_off", "lifted_off"
                "refused_grabs", "two_hand_grabs", "tool_grabs")
 ANALYSIS_COLUMNS = ("recording", "session", "match", "first_divergence_frame", "frames",
                     "duration_s", "part", *PART_COUNTS, "placed_at_s",
-                    *(f"s_{mode.value}" for mode in Mode), "session_refused_grabs", "error")
+                    *(f"s_{mode.value}" for mode in Mode), "session_refused_grabs", "error",
+                    "overrides")
 
 
 # The run frame by frame as tables (``vade-replay --events``, ``--poses``), for a study's own
@@ -161,7 +162,10 @@ def analysis_rows(recording: str, summary: dict) -> list[dict]:
                "match": summary["match"],
                "first_divergence_frame": divergence["frame"] if divergence else "",
                "frames": summary["frames"], "duration_s": summary["duration_s"],
-               "session_refused_grabs": sum(analysis["refused_grabs"].values()), "error": ""}
+               "session_refused_grabs": sum(analysis["refused_grabs"].values()), "error": "",
+               # A what-if's changes (empty for a plain replay), so its rows stand apart.
+               "overrides": "; ".join(f"{key}={json.dumps(value)}" for key, value
+                                      in sorted((summary.get("overrides") or {}).items()))}
     rows = []
     for name, stats in sorted(analysis["parts"].items()):
         times = stats["time_in_state_s"]
