@@ -67,7 +67,8 @@ def _overrides(items: list[str]) -> dict[str, str]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
+    # Files and options in any order (a study's files after --csv OUT.csv, say).
+    args = _parser().parse_intermixed_args(argv)
     overrides = _overrides(args.set)
     if args.spawn and not args.rerun:
         raise ConfigError("--spawn opens the review: give --rerun OUT.rrd too", field="--spawn")

@@ -384,3 +384,13 @@ def test_o_writes_through_a_link_keeps_the_mode_and_never_over_its_input(tmp_pat
     assert result.returncode == 2 and "refusing" in result.stderr
     assert (tmp_path / "x.mcap.partial").read_bytes() == golden.read_bytes()
     assert not (tmp_path / "x.mcap").exists()
+
+
+def test_recordings_and_options_in_any_order(tmp_path):
+    """A study's files may follow an option's value (``--csv OUT.csv A.mcap B.mcap``)."""
+    files = [str(RECORDINGS / f"{name}.mcap") for name in ("drop_on_table", "hoist_placed")]
+    table = tmp_path / "t.csv"
+    result = run_cli("vade-replay", files[0], "--csv", str(table), files[1])
+    assert result.returncode == 0, result.stderr
+    assert [line.split(": ")[-1] for line in result.stdout.splitlines()] == ["match", "match"]
+    assert table.read_text().count("\n") == 3  # the header and a row per recording's part
