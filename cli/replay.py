@@ -122,6 +122,12 @@ def _frame_kinds(outputs: dict[str, TableFile]) -> list[str]:
     return [kind for kind in FRAME_TABLES if f"--{kind}" in outputs]
 
 
+def _frame_outputs(outputs: dict[str, TableFile]) -> dict[str, tuple[TextIO, str, str]]:
+    """The frame tables among the outputs, as ``FrameTables`` takes them."""
+    return {kind: (table.stream, table.option, table.path)
+            for kind in _frame_kinds(outputs) for table in (outputs[f"--{kind}"],)}
+
+
 def _write_table(table: TableFile, summaries: list[dict]) -> None:
     """The analysis of every replayed recording as CSV (``replay.ANALYSIS_COLUMNS``); a
     recording that could not be replayed is a row with its ``error``."""
@@ -181,9 +187,9 @@ def _results_here(args, overrides: dict[str, str],
                   outputs: dict[str, TableFile]) -> Iterator[tuple[str, object]]:
     """Each recording's result, replayed in this process, its frame table rows written
     straight into the tables (those of a recording that fails are cut off again)."""
-    kinds = _frame_kinds(outputs)
+    tables = {kind: outputs[f"--{kind}"] for kind in _frame_kinds(outputs)}
+    streams = _frame_outputs(outputs)
     for path in args.recordings:
-        tables = {kind: outputs[f"--{kind}"] for kind in kinds}
         marks = {}
         for kind, table in tables.items():
             try:
@@ -191,8 +197,7 @@ def _results_here(args, overrides: dict[str, str],
                 marks[kind] = table.stream.tell() if table.seekable else None
             except OSError as exc:
                 raise table.error(exc) from None
-        result = _replay_rows(path, overrides, {kind: (t.stream, t.option, t.path)
-                                                for kind, t in tables.items()})
+        result = _replay_rows(path, overrides, streams)
         if result[0] == "error":
             for kind, table in tables.items():
                 if marks[kind] is not None:
@@ -254,10 +259,8 @@ def _results_in_workers(args, overrides: dict[str, str], outputs: dict[str, Tabl
 
 
 def _many(args, overrides: dict[str, str], outputs: dict[str, TableFile]) -> int:
-    """Check several recordings: one line (or JSON object) each; the worst exit code."""
-    for kind in _frame_kinds(outputs):
-        FrameTables("", {kind: (outputs[f"--{kind}"].stream, f"--{kind}",
-                                outputs[f"--{kind}"].path)}, header=True)
+    """Check several recordings: one line each (or one JSON array); the worst exit code."""
+    FrameTables("", _frame_outputs(outputs), header=True)  # the headers, once
     jobs = args.jobs or _cpus()
     results = _results_here(args, overrides, outputs) if jobs == 1 \
         else _results_in_workers(args, overrides, outputs, jobs)
@@ -337,9 +340,7 @@ def _one(args, path: str, overrides: dict[str, str], outputs: dict[str, TableFil
     if args.rerun:
         ensure_writable(args.rerun)
     progress = Progress("replaying", recording.frame_count)
-    tables = FrameTables(path, {kind: (outputs[f"--{kind}"].stream, f"--{kind}",
-                                       outputs[f"--{kind}"].path)
-                                for kind in _frame_kinds(outputs)}, header=True)
+    tables = FrameTables(path, _frame_outputs(outputs), header=True)
 
     def on_frame(item) -> None:
         progress.update()

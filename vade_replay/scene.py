@@ -227,6 +227,11 @@ class Scene:
     # it, and grabs parts as the right hand does.
     base_fixed: bool = False
 
+    @property
+    def base_in_hand(self) -> bool:
+        """The left hand carries the base part (so it grabs nothing)."""
+        return self.base is not None and not self.base_fixed
+
     def part(self, name: str) -> Body:
         return self.parts[self.part_index[name]]
 

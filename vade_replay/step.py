@@ -154,7 +154,7 @@ def _read_hands(f: _Frame, state: WorldState) -> None:
 def _move_base(f: _Frame) -> None:
     # The base part is held in the left hand; without a left-hand tracker, or fixed, it
     # stays put.
-    if f.scene.base is not None and not f.scene.base_fixed and LEFT in f.hands:
+    if f.scene.base_in_hand and LEFT in f.hands:
         f.base_pose = f.hands[LEFT].compose(f.scene.hand_from_base)
 
 
@@ -225,7 +225,7 @@ def _taken_over(f: _Frame, state: WorldState, hand: str, index: int) -> bool:
     other = _other(hand)
     if dict(state.grips).get(other, False) or not f.grips.get(other, False) \
             or other not in f.hands \
-            or (other == LEFT and f.scene.base is not None and not f.scene.base_fixed):
+            or (other == LEFT and f.scene.base_in_hand):
         return False
     nearest = _nearest(f, f.hands[other].position, f.scene.physics.grab_radius, _GRABBABLE,
                        hand)[0]
@@ -238,7 +238,7 @@ def _grabs(f: _Frame, state: WorldState) -> None:
                if not previous.get(hand, False) and f.grips[hand] and hand in f.hands
                # The left hand holds the base part; it grabs in scenes without one or with
                # a fixed one.
-               and not (hand == LEFT and f.scene.base is not None and not f.scene.base_fixed)]
+               and not (hand == LEFT and f.scene.base_in_hand)]
     if LEFT in closing and RIGHT in closing:
         # Both hands close in this frame: the one nearer the part nearest it acts first (at
         # equal distances the right), so a part both reach goes to the nearer hand, and a
@@ -393,7 +393,7 @@ def _other_hand_on(f: _Frame, hand: str, index: int) -> bool:
     if hand != LEFT and hand != RIGHT:
         return False
     other = _other(hand)
-    if other == LEFT and f.scene.base is not None and not f.scene.base_fixed:
+    if other == LEFT and f.scene.base_in_hand:
         return False
     if not f.grips.get(other, False) or other not in f.hands:
         return False
