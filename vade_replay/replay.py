@@ -397,27 +397,17 @@ class ReplayFrame:
 
 def replay_frames(recording: Recording, scene: Scene, *, check: bool = True,
                   collision: CollisionWorld | None = None) -> Iterator[ReplayFrame]:
-    """Re-run a recording's inputs through ``scene``, comparing each frame's messages."""
+    """Re-run a recording's inputs through ``scene``, comparing each frame's messages:
+    ``replay`` without its summary and outputs, for a script of one's own (and for
+    measuring the step with the check off)."""
     advance = Stepper(scene, collision or CollisionWorld(scene))
     encoder = codec.FrameEncoder(recording.parts_encoding)
     for recorded in recording.frames():
         replayed = advance(recorded.inputs)
         derived = encoder.derived_messages(replayed)
-        # Equal lists of (channel, bytes) are the common case, compared in C; only a
-        # difference is walked to name where it is.
         divergence = None if not check or recorded.derived == derived \
             else _divergence(recorded.inputs, recorded.derived, derived)
         yield ReplayFrame(recorded, replayed, derived, divergence)
-
-
-def _with_file(items: Iterator, path: Path) -> Iterator:
-    """The items, with the recording's path added to a RecordingError that lacks one."""
-    try:
-        yield from items
-    except RecordingError as exc:
-        if exc.file is None:
-            exc.file = str(path)
-        raise
 
 
 # Effective values that follow from fields: not a change of their own when one of these is
@@ -533,20 +523,32 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
                                  extra_metadata={"replayed_from": str(recording.path)},
                                  parts_encoding=recording.parts_encoding)
     first_time = None
+    advance = Stepper(scene, collision)
+    encoder = codec.FrameEncoder(recording.parts_encoding)
     try:
-        for item in _with_file(replay_frames(recording, scene, collision=collision),
-                               recording.path):
-            if first_time is None:
-                first_time = item.replayed.time_ns
-            summary.count(item.replayed, first_time)
-            summary.messages_checked += len(item.recorded.derived)
-            if item.divergence and summary.first_divergence is None:
-                summary.first_divergence = item.divergence.__dict__ | {
-                    "text": item.divergence.describe()}
-            if writer:
-                writer.write_frame(item.replayed, item.derived)
-            if on_frame:
-                on_frame(item)
+        try:
+            # One loop, no generators between the reader and the check, and a ReplayFrame
+            # only for an on_frame: ~2 us a frame less (vade-bench --replay).
+            for recorded in recording.frames():
+                replayed = advance(recorded.inputs)
+                derived = encoder.derived_messages(replayed)
+                divergence = None if recorded.derived == derived \
+                    else _divergence(recorded.inputs, recorded.derived, derived)
+                if first_time is None:
+                    first_time = replayed.time_ns
+                summary.count(replayed, first_time)
+                summary.messages_checked += len(recorded.derived)
+                if divergence and summary.first_divergence is None:
+                    summary.first_divergence = divergence.__dict__ | {
+                        "text": divergence.describe()}
+                if writer:
+                    writer.write_frame(replayed, derived)
+                if on_frame:
+                    on_frame(ReplayFrame(recorded, replayed, derived, divergence))
+        except RecordingError as exc:
+            if exc.file is None:
+                exc.file = str(recording.path)
+            raise
     except VadeError as exc:
         if writer is None or partial is None:
             raise
