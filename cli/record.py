@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from vade_replay import session as session_mod
+from vade_replay.errors import ConfigError
 from vade_replay.replay import record
 
 from ._common import EXIT_OK, Progress, print_json, run
@@ -29,6 +30,7 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     session = session_mod.load(args.session)
     out = Path(args.output) if args.output else Path(Path(args.session).stem + ".mcap")
+    _check_output(out, Path(args.session), session)
     progress = Progress("recording", None)
     summary = record(session, out, on_frame=progress.update)
     progress.close()
@@ -38,6 +40,19 @@ def main(argv: list[str] | None = None) -> int:
         print(f"recorded {summary.frames} frames ({summary.duration_s:.2f} s, "
               f"{summary.transitions} transitions) of {session.name} to {out}")
     return EXIT_OK
+
+
+def _check_output(out: Path, path: Path, session: session_mod.Session) -> None:
+    """The recording (and its ``.partial`` while it is written) may not be written over the
+    session file or a file it names (a slip such as ``-o session.json``)."""
+    inputs = [("the session file", path)] + [
+        (f"a file the session names ({where})", path.parent / name)
+        for name, where in session_mod.referenced_files(session.doc).items()]
+    for written in (out, Path(str(out) + ".partial")):
+        for what, given in inputs:
+            if written.resolve() == given.resolve():
+                raise ConfigError(f"refusing to write the recording over {given}, which is "
+                                  f"{what}", field="-o")
 
 
 def entry() -> None:

@@ -75,7 +75,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.jobs < 0:
         raise ConfigError(f"--jobs takes a count of processes (0: one per CPU), got "
                           f"{args.jobs}", field="--jobs")
-    _check_table_paths(args)
+    _check_output_paths(args)
     if len(args.recordings) > 1 and (args.output or args.rerun):
         raise ConfigError("-o and --rerun take one recording at a time",
                           field="-o" if args.output else "--rerun")
@@ -99,17 +99,20 @@ def main(argv: list[str] | None = None) -> int:
             table.discard()
 
 
-def _check_table_paths(args) -> None:
-    """A table (``--csv``, ``--events``, ``--poses``) may not name a recording being replayed
-    nor another output of the run."""
-    others = [("a recording replayed", args.recordings), ("-o", [args.output]),
-              ("--rerun", [args.rerun])]
-    for option, given in _table_options(args):
-        table = Path(given).resolve()
+def _check_output_paths(args) -> None:
+    """No output (``-o``, ``--rerun``, a table) may name a recording being replayed nor
+    another output of the run: a slip such as ``--rerun run.mcap`` for ``run.rrd`` must
+    not destroy the recording."""
+    others: list[tuple[str, list]] = [("a recording replayed", args.recordings)]
+    for option, given in [("-o", args.output), ("--rerun", args.rerun), *_table_options(args)]:
+        if not given:
+            continue
+        target = Path(given).resolve()
         for other, paths in others:
-            if any(p and Path(p).resolve() == table for p in paths):
-                raise ConfigError(f"refusing to write the table over {given}, which is "
-                                  f"also {other}", field=option)
+            if any(p and Path(p).resolve() == target for p in paths):
+                what = "the table" if option in ("--csv", "--events", "--poses") else option
+                raise ConfigError(f"refusing to write {what} over {given}, which is also "
+                                  f"{other}", field=option)
         others.append((option, [given]))
 
 

@@ -394,3 +394,53 @@ def test_recordings_and_options_in_any_order(tmp_path):
     assert result.returncode == 0, result.stderr
     assert [line.split(": ")[-1] for line in result.stdout.splitlines()] == ["match", "match"]
     assert table.read_text().count("\n") == 3  # the header and a row per recording's part
+
+
+@pytest.mark.parametrize("outputs", [["--rerun", "{rec}"], ["-o", "{out}", "--rerun", "{out}"],
+                                     ["--rerun", "{out}", "--csv", "{out}"]])
+def test_no_output_is_written_over_the_recording_or_another_output(tmp_path, outputs):
+    """A slip such as ``--rerun run.mcap`` for ``run.rrd`` used to replace the recording
+    with the review, and ``-o X --rerun X`` the regenerated recording with it."""
+    import shutil
+    rec, out = tmp_path / "run.mcap", tmp_path / "out.mcap"
+    shutil.copy(RECORDINGS / "drop_on_table.mcap", rec)
+    args = [a.format(rec=rec, out=out) for a in outputs]
+    option = args[-2]
+    _assert_clean_error(run_cli("vade-replay", str(rec), *args), "refusing", option)
+    assert rec.read_bytes() == (RECORDINGS / "drop_on_table.mcap").read_bytes()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.mcap"]
+
+
+def test_a_recording_is_not_written_over_its_session_or_the_files_it_names(tmp_path):
+    """``vade-record s.json -o s.json`` used to replace the session with the recording."""
+    from test_session import CSV, _csv_doc
+    session = _write(tmp_path, _csv_doc())
+    (tmp_path / "log.csv").write_text(CSV)
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    _assert_clean_error(run_cli("vade-record", str(session), "-o", str(session)),
+                        "refusing", "the session file")
+    # Another spelling of the same path; a file the session names.
+    _assert_clean_error(run_cli("vade-record", str(session), "-o",
+                                str(tmp_path / "." / "s.json")), "refusing")
+    _assert_clean_error(run_cli("vade-record", str(session), "-o", str(tmp_path / "log.csv")),
+                        "refusing", "tracker.csv")
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
+    assert run_cli("vade-record", str(session), "-o", str(tmp_path / "s.mcap")).returncode == 0
+
+
+def test_a_file_of_the_other_kind_is_named_for_what_it_is(tmp_path):
+    _assert_clean_error(run_cli("vade-replay", str(RECORDINGS / "drop_on_table.json")),
+                        "drop_on_table.json", "session file", "vade-record")
+    _assert_clean_error(run_cli("vade-record", str(RECORDINGS / "drop_on_table.mcap")),
+                        "drop_on_table.mcap", "recording", "vade-replay")
+
+
+@pytest.mark.parametrize("size, needle", [(0, "empty file"), (3, "cut short before its first"),
+                                          (2000, "cut short before its first")])
+def test_a_recording_cut_before_its_first_frame_says_so(tmp_path, size, needle):
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes((RECORDINGS / "drop_on_table.mcap").read_bytes()[:size])
+    _assert_clean_error(run_cli("vade-replay", str(cut)), "cut.mcap", needle)
+    other = tmp_path / "other.mcap"
+    other.write_bytes(b"PK\x03\x04 a zip file")
+    _assert_clean_error(run_cli("vade-replay", str(other)), "not an MCAP file")

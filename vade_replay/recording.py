@@ -36,7 +36,7 @@ from . import codec
 from .errors import RecordingError
 from .frames import FrameRecord, TrackerFrame
 from .scene import Scene
-from .session import Session, load_schema, parse, validated_digest
+from .session import MCAP_MAGIC, Session, load_schema, parse, validated_digest
 
 PROFILE = "vade"
 SESSION_ATTACHMENT = "session.json"
@@ -312,9 +312,7 @@ class Recording:
                     elif isinstance(record, (Chunk, Message)):
                         break  # schemas and channels before it may precede attachments
         except _READ_ERRORS as exc:
-            detail = str(exc) or f"{type(exc).__name__}: too short or not MCAP"
-            raise RecordingError(f"not a readable MCAP file ({detail})", file=str(self.path)) \
-                from None
+            raise RecordingError(self._unreadable(exc), file=str(self.path)) from None
         if self.profile != PROFILE or SESSION_ATTACHMENT not in attachments:
             raise RecordingError("not a vade_replay recording (no session attachment)",
                                  file=str(self.path))
@@ -329,6 +327,26 @@ class Recording:
             raise RecordingError(f"unknown parts encoding {self.parts_encoding!r} (this version "
                                  f"reads {', '.join(codec.PARTS_ENCODINGS)})",
                                  file=str(self.path), field="metadata encoding.parts")
+
+    def _unreadable(self, exc: BaseException) -> str:
+        """Why the head of the file cannot be read, in a user's terms."""
+        try:
+            with open(self.path, "rb") as stream:
+                first = stream.read(64)
+        except OSError as error:
+            return f"cannot read it: {error.strerror or error}"
+        if not first:
+            return "an empty file, not a recording"
+        if first.lstrip()[:1] in (b"{", b"["):
+            return ("not a recording: this looks like a session file (JSON); record it with "
+                    "vade-record first")
+        if not (first.startswith(MCAP_MAGIC) or MCAP_MAGIC.startswith(first)):
+            return "not an MCAP file (it does not begin with MCAP's magic bytes)"
+        detail = str(exc) or type(exc).__name__
+        if isinstance(exc, (EndOfFile, EOFError, struct.error)):
+            return (f"cut short before its first frame: no complete frame to replay "
+                    f"({detail})")
+        return f"not a readable MCAP file ({detail})"
 
     @cached_property
     def frame_count(self) -> int | None:

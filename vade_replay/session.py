@@ -98,6 +98,10 @@ def validate(doc: object, *, file: str) -> None:
         raise SessionError(error.message, file=file, field=field)
 
 
+# The first bytes of every MCAP file.
+MCAP_MAGIC = b"\x89MCAP"
+
+
 def referenced_files(doc: dict) -> dict[str, str]:
     """Every file a session names (relative to the session file) -> the field that names it."""
     found: dict[str, str] = {}
@@ -192,6 +196,9 @@ def load(path: str | Path) -> Session:
         raw = path.read_bytes()
     except OSError as exc:
         raise SessionError(f"cannot read session file: {exc.strerror}", file=str(path)) from None
+    if raw.startswith(MCAP_MAGIC):
+        raise SessionError("this is a recording (MCAP), not a session file: replay it with "
+                           "vade-replay", file=str(path))
     try:
         doc = strict_json(raw.decode("utf-8"))
     except (UnicodeDecodeError, ValueError) as exc:
