@@ -34,6 +34,8 @@ def main(argv: list[str] | None = None) -> int:
     progress = Progress("recording", None)
     summary = record(session, out, on_frame=progress.update)
     progress.close()
+    for warning in summary.warnings:
+        print(f"warning: {args.session}: {warning}", file=sys.stderr)
     if args.json:
         print_json(summary.to_dict() | {"output": str(out)})
     else:

@@ -15,7 +15,7 @@ from typing import Iterator, TextIO
 from vade_replay.errors import ConfigError
 from vade_replay.recording import Recording, ensure_writable
 from vade_replay.replay import ANALYSIS_COLUMNS, analysis_rows, as_recorded, replay
-from vade_replay.tables import FRAME_TABLES, FrameTables, TableError, TableFile
+from vade_replay.tables import FRAME_TABLES, STDOUT, FrameTables, TableError, TableFile
 
 from vade_replay.errors import VadeError
 
@@ -76,6 +76,13 @@ def main(argv: list[str] | None = None) -> int:
         raise ConfigError(f"--jobs takes a count of processes (0: one per CPU), got "
                           f"{args.jobs}", field="--jobs")
     _check_output_paths(args)
+    global _lines
+    _lines = sys.stdout
+    if STDOUT in [path for _, path in _table_options(args)]:
+        if args.json:
+            raise ConfigError("--json and a table on standard output (-) cannot share it: "
+                              "give the table a file", field="--json")
+        _lines = sys.stderr  # standard output is the table's alone
     if len(args.recordings) > 1 and (args.output or args.rerun):
         raise ConfigError("-o and --rerun take one recording at a time",
                           field="-o" if args.output else "--rerun")
@@ -85,7 +92,8 @@ def main(argv: list[str] | None = None) -> int:
     outputs: dict[str, TableFile] = {}
     try:
         for option, path in _table_options(args):
-            ensure_writable(path)
+            if path != STDOUT:
+                ensure_writable(path)
             outputs[option] = TableFile(path, option)
         if len(args.recordings) > 1:
             code = _many(args, overrides, outputs)
@@ -97,6 +105,10 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         for table in outputs.values():
             table.discard()
+
+
+# Where the run's own lines go: standard output, unless a table is written there (``-``).
+_lines: TextIO = sys.stdout
 
 
 def _check_output_paths(args) -> None:
@@ -175,6 +187,8 @@ def _replay_rows(path: str, overrides: dict[str, str],
     except TableError as exc:
         return "table", (exc.message, exc.field)
     except VadeError as exc:
+        if exc.file is None:
+            exc.file = path  # of several, which one (a --set its session lacks, say)
         return "error", exc.describe()
 
 
@@ -275,9 +289,28 @@ def _many(args, overrides: dict[str, str], outputs: dict[str, TableFile]) -> int
         results.close()
     if args.json:
         print_json(summaries)
+    else:
+        print(_tally(summaries, bool(overrides)), file=_lines)
     if "--csv" in outputs:
         _write_table(outputs["--csv"], summaries)
     return worst
+
+
+def _tally(summaries: list[dict], what_if: bool) -> str:
+    """The last line of several: how many matched, diverged (departed, for a what-if),
+    were cut short, and could not be replayed (whose errors went to stderr)."""
+    unusable = sum("error" in s for s in summaries)
+    done = [s for s in summaries if "error" not in s]
+    matched = sum(bool(s["match"]) for s in done)
+    parts = [f"{len(summaries)} recordings: {matched} "
+             + ("unchanged" if what_if else "match"),
+             f"{len(done) - matched} " + ("departed" if what_if else "diverged")]
+    cut = sum(bool(s.get("truncated")) for s in done)
+    if cut:
+        parts.append(f"{cut} cut short")
+    parts.append(f"{unusable} could not be replayed" + (" (see the errors above)"
+                                                         if unusable else ""))
+    return ", ".join(parts)
 
 
 def _one_of_many(args, overrides: dict[str, str], path: str, result: tuple[str, object],
@@ -294,13 +327,20 @@ def _one_of_many(args, overrides: dict[str, str], path: str, result: tuple[str, 
         return EXIT_UNUSABLE
     summary = SimpleNamespace(**value)  # type: ignore[arg-type]
     summaries.append({**value, "recording": path})  # type: ignore[dict-item]
+    _warn(path, summary)
+    if not args.json:
+        cut = " (cut short)" if summary.truncated else ""
+        print(f"{path}: {_verdict(summary, overrides, short=True)}{cut}", file=_lines)
+    return EXIT_OK if summary.match or overrides else EXIT_DIVERGED
+
+
+def _warn(path: str, summary) -> None:
+    """A replay's warnings, on stderr: a recording cut short, a what-if's likely slips."""
     if summary.truncated:
         print(f"warning: {path}: the recording was cut short (no end records); replayed "
               f"the {summary.frames} complete frames it holds", file=sys.stderr)
-    if not args.json:
-        cut = " (cut short)" if summary.truncated else ""
-        print(f"{path}: {_verdict(summary, overrides, short=True)}{cut}")
-    return EXIT_OK if summary.match or overrides else EXIT_DIVERGED
+    for warning in summary.warnings:
+        print(f"warning: {path}: what-if: {warning}", file=sys.stderr)
 
 
 def _verdict(summary, overrides: dict[str, str], *, short: bool = False) -> str:
@@ -351,13 +391,11 @@ def _one(args, path: str, overrides: dict[str, str], outputs: dict[str, TableFil
 
     summary = replay(recording, overrides=overrides, out=args.output, on_frame=on_frame)
     progress.close()
-    if summary.truncated:
-        print(f"warning: {recording.path}: the recording was cut short (no end records); "
-              f"replayed the {summary.frames} complete frames it holds", file=sys.stderr)
+    _warn(path, summary)
     if args.json:
         print_json(summary.to_dict())
     else:
-        print(_verdict(summary, overrides))
+        print(_verdict(summary, overrides), file=_lines)
     if "--csv" in outputs:
         _write_table(outputs["--csv"], [{**summary.to_dict(), "recording": path}])
     if args.rerun:
@@ -373,7 +411,7 @@ def _one(args, path: str, overrides: dict[str, str], outputs: dict[str, TableFil
                                         divergence_frame=divergence, spawn=spawn)
         if not args.json:
             print(f"review: {args.rerun} ({counts['frames']} frames; open with "
-                  f"`rerun {args.rerun}`)")
+                  f"`rerun {args.rerun}`)", file=_lines)
     if summary.match or overrides:
         return EXIT_OK
     return EXIT_DIVERGED

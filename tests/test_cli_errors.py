@@ -265,7 +265,9 @@ def test_many_recordings_at_once(tmp_path):
     good = [str(RECORDINGS / "drop_on_table.mcap"), str(RECORDINGS / "throw_and_catch.mcap")]
     result = run_cli("vade-replay", *good)
     assert result.returncode == 0
-    assert [line.split(": ")[1] for line in result.stdout.splitlines()] == ["match", "match"]
+    *lines, tally = result.stdout.splitlines()
+    assert [line.split(": ")[1] for line in lines] == ["match", "match"]
+    assert tally == "2 recordings: 2 match, 0 diverged, 0 could not be replayed"
     bad = tmp_path / "bad.mcap"
     nudge_pose(RECORDINGS / "drop_on_table.mcap", bad, frame=60, axis=1, delta=1e-9)
     missing = str(tmp_path / "missing.mcap")
@@ -278,6 +280,9 @@ def test_many_recordings_at_once(tmp_path):
     assert result.returncode == 2  # the worst: an unusable file
     assert "missing.mcap" in result.stderr and "DIVERGED" in result.stdout
     assert result.stdout.count(": match") == 1
+    # The last line counts them, so that a log of stdout alone still shows the unusable one.
+    assert result.stdout.splitlines()[-1] == ("3 recordings: 1 match, 1 diverged, 1 could "
+                                              "not be replayed (see the errors above)")
     _assert_clean_error(run_cli("vade-replay", *good, "-o", str(tmp_path / "x.mcap")), "-o")
 
 
@@ -392,7 +397,8 @@ def test_recordings_and_options_in_any_order(tmp_path):
     table = tmp_path / "t.csv"
     result = run_cli("vade-replay", files[0], "--csv", str(table), files[1])
     assert result.returncode == 0, result.stderr
-    assert [line.split(": ")[-1] for line in result.stdout.splitlines()] == ["match", "match"]
+    assert [line.split(": ")[-1] for line in result.stdout.splitlines()[:-1]] == ["match",
+                                                                                "match"]
     assert table.read_text().count("\n") == 3  # the header and a row per recording's part
 
 
@@ -444,3 +450,47 @@ def test_a_recording_cut_before_its_first_frame_says_so(tmp_path, size, needle):
     other = tmp_path / "other.mcap"
     other.write_bytes(b"PK\x03\x04 a zip file")
     _assert_clean_error(run_cli("vade-replay", str(other)), "not an MCAP file")
+
+
+def test_a_table_on_standard_output(tmp_path):
+    """``--csv -``: the table is standard output's alone; the run's lines go to stderr."""
+    import csv
+    import io
+    files = [str(RECORDINGS / f"{name}.mcap") for name in ("drop_on_table", "hoist_placed")]
+    result = run_cli("vade-replay", *files, "--csv", "-", process=True)
+    assert result.returncode == 0, result.stderr
+    rows = list(csv.DictReader(io.StringIO(result.stdout)))
+    assert [(r["recording"], r["part"], r["match"]) for r in rows] == [
+        (files[0], "peg", "True"), (files[1], "ring", "True")]
+    assert "2 recordings: 2 match" in result.stderr and not (tmp_path / "-").exists()
+    events = run_cli("vade-replay", files[0], "--events", "-", process=True)
+    assert events.stdout.splitlines()[0].startswith("recording,frame,time_s,kind")
+    assert "match" in events.stderr
+    _assert_clean_error(run_cli("vade-replay", files[0], "--csv", "-", "--json"), "--json")
+
+
+def test_the_table_marks_a_recording_cut_short(tmp_path):
+    """A crash while recording leaves fewer frames than the session: its rows say so."""
+    import csv
+    golden = (RECORDINGS / "drop_on_table.mcap").read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(golden[:len(golden) * 2 // 3])
+    table = tmp_path / "t.csv"
+    result = run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"), str(cut),
+                     "--csv", str(table))
+    assert result.returncode == 0, result.stderr
+    rows = list(csv.DictReader(table.open()))
+    assert [(r["truncated"], r["match"]) for r in rows] == [("False", "True"), ("True", "True")]
+    assert int(rows[1]["frames"]) < int(rows[0]["frames"])
+    assert "1 cut short" in result.stdout.splitlines()[-1]
+
+
+def test_a_what_if_warns_of_gravity_in_the_wrong_units():
+    """``--set physics.gravity`` is in the session's units: a value far from Earth's once in
+    metres is named on stderr (the replay still runs: a what-if may mean it)."""
+    result = run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"), "--set",
+                     "physics.gravity=[0,0,-0.0098]")
+    assert result.returncode == 0, result.stderr
+    assert "warning:" in result.stderr and "0.0098 m/s^2" in result.stderr
+    plain = run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"))
+    assert plain.stderr == ""

@@ -183,3 +183,34 @@ def test_seeded_noise_is_reproducible_and_changes_with_the_seed():
     doc["tracker"]["noise"]["seed"] = 8
     c = list(make_session(doc).tracker_frames())
     assert a == b and a != c
+
+
+def test_keyframes_out_of_time_order_are_an_error_naming_the_keyframe():
+    """A typo (1.2 written 0.1) used to be sorted into a quiet session of 0 transitions."""
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+    keys = doc["tracker"]["devices"]["right_hand"]
+    assert keys[1]["t"] == 0.5 and keys[2]["t"] == 0.7
+    keys[2]["t"] = 0.1
+    with pytest.raises(SessionError) as info:
+        list(make_session(doc).tracker_frames())
+    assert info.value.field == "tracker.devices.right_hand[2].t"
+    assert "0.1 s after t = 0.5 s" in str(info.value)
+
+
+def test_likely_slips_are_warned_of_not_refused():
+    """Gravity far from Earth's once in metres (9.8 in a mm session is 1/1000 g), and
+    keyframes after the session ends: allowed (a weightless test, a trimmed session) but
+    named, in the units the user wrote."""
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+    assert make_session(doc).warnings() == []
+    doc["physics"] = {**doc.get("physics", {}), "gravity": [0, 0, -9.8]}
+    doc["units"] = "mm"
+    doc["tracker"]["devices"]["right_hand"].append(
+        {"t": doc["tracker"]["duration_s"] + 1.0, "grip": False})
+    gravity, late = make_session(doc).warnings()
+    assert "0.0098 m/s^2" in gravity and "mm/s^2" in gravity and "9810" in gravity
+    assert late.startswith("tracker.devices.right_hand: 1 keyframe after duration_s")
+    doc["physics"]["gravity"] = [0, 0, 0]  # weightless on purpose: no warning
+    doc["tracker"]["devices"]["right_hand"].pop()
+    doc["units"] = "m"
+    assert make_session(doc).warnings() == []

@@ -200,7 +200,8 @@ def decode_tracker(data: bytes) -> TrackerFrame:
     return TrackerFrame(frame, time_ns, tuple(samples))
 
 
-def _snapshot(s: PartSnapshot) -> dict:
+def snapshot_dict(s: PartSnapshot) -> dict:
+    """A part's snapshot as a /parts message holds it."""
     return {"name": s.name, "mode": s.mode, "position": list(s.position),
             "xyzw": list(s.rotation_xyzw), "linear_velocity": list(s.linear_velocity),
             "angular_velocity": list(s.angular_velocity)}
@@ -208,8 +209,8 @@ def _snapshot(s: PartSnapshot) -> dict:
 
 def encode_parts(record: FrameRecord) -> dict:
     return {"frame": record.frame, "time_ns": record.time_ns,
-            "base": _snapshot(record.base) if record.base else None,
-            "parts": [_snapshot(p) for p in record.parts]}
+            "base": snapshot_dict(record.base) if record.base else None,
+            "parts": [snapshot_dict(p) for p in record.parts]}
 
 
 def encode_foxglove(record: FrameRecord) -> dict:

@@ -33,10 +33,15 @@ def _keyframes(device: str, frames: list[dict], factor: float, file: str) -> lis
     out = []
     position, rotation, grip = sp.ZERO3, sp.IDENTITY_QUAT, False
     last_t = -1.0
-    for i, kf in enumerate(sorted(frames, key=lambda k: k["t"])):
+    for i, kf in enumerate(frames):
         where = f"tracker.devices.{device}[{i}]"
         if kf["t"] == last_t:
             raise SessionError("two keyframes at the same time", file=file, field=where)
+        if kf["t"] < last_t:
+            # Sorting them would hide a typo (1.2 written 0.1) behind a quiet session.
+            raise SessionError(f"keyframes out of time order: t = {kf['t']:g} s after "
+                               f"t = {last_t:g} s (keyframes are listed in time order)",
+                               file=file, field=f"{where}.t")
         last_t = kf["t"]
         if "position" in kf:
             position = tuple(float(v) * factor for v in kf["position"])

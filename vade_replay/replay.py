@@ -75,6 +75,9 @@ class RunSummary:
     # the what-if's own changes: a default changed since (name -> recorded, now).
     physics_changed: dict = field(default_factory=dict)
     truncated: bool = False
+    # What the session allows but is most likely a slip (``Session.warnings``): of the
+    # session recorded, or of a what-if's changed one.
+    warnings: list[str] = field(default_factory=list)
     # Which build ran the frames (native.describe): compiled or the Python sources. Both
     # give the same bits; it says where to look when two machines disagree.
     build: str = field(default_factory=native.describe)
@@ -106,7 +109,7 @@ PART_COUNTS = ("grabs", "catches", "releases", "drops", "slid_off", "lifted_off"
 ANALYSIS_COLUMNS = ("recording", "session", "match", "first_divergence_frame", "frames",
                     "duration_s", "part", *PART_COUNTS, "placed_at_s",
                     *(f"s_{mode.value}" for mode in Mode), "session_refused_grabs", "error",
-                    "overrides")
+                    "overrides", "truncated")
 
 
 # The run frame by frame as tables (``vade-replay --events``, ``--poses``), for a study's own
@@ -165,7 +168,9 @@ def analysis_rows(recording: str, summary: dict) -> list[dict]:
                "session_refused_grabs": sum(analysis["refused_grabs"].values()), "error": "",
                # A what-if's changes (empty for a plain replay), so its rows stand apart.
                "overrides": "; ".join(f"{key}={json.dumps(value)}" for key, value
-                                      in sorted((summary.get("overrides") or {}).items()))}
+                                      in sorted((summary.get("overrides") or {}).items())),
+               # Cut short (a crash while recording): the frames it held, not the session.
+               "truncated": bool(summary.get("truncated"))}
     rows = []
     for name, stats in sorted(analysis["parts"].items()):
         times = stats["time_in_state_s"]
@@ -180,7 +185,8 @@ def analysis_rows(recording: str, summary: dict) -> list[dict]:
 def _first_difference(a, b, path: str = ""):
     """Path of the first differing leaf between two decoded JSON values, with both values."""
     if isinstance(a, dict) and isinstance(b, dict):
-        for key in sorted(set(a) | set(b)):
+        # A part's mode first: the difference a user reads first.
+        for key in sorted(set(a) | set(b), key=lambda k: (k != "mode", k)):
             if key not in a or key not in b:
                 return f"{path}.{key}".lstrip("."), a.get(key, "<missing>"), b.get(key, "<missing>")
             found = _first_difference(a[key], b[key], f"{path}.{key}")
@@ -201,8 +207,24 @@ def _first_difference(a, b, path: str = ""):
     return None
 
 
+def _part_as_listed(name: str, listed: list, record: FrameRecord | None) -> dict | None:
+    """The part's snapshot as a /parts message lists it: from ``listed`` (a message's parts)
+    if there, else from ``record`` (a frame it is unchanged since)."""
+    for item in listed:
+        if isinstance(item, dict) and item.get("name") == name:
+            return item
+    for snapshot in (record.parts if record is not None else ()):
+        if snapshot.name == name:
+            return codec.loads(codec.dumps(codec.snapshot_dict(snapshot)), topic=codec.PARTS_TOPIC)
+    return None
+
+
 def _divergence(inputs: TrackerFrame, recorded: list[tuple[str, bytes]],
-                replayed: list[tuple[str, bytes]]) -> Divergence | None:
+                replayed: list[tuple[str, bytes]], replayed_record: FrameRecord | None = None,
+                previous: FrameRecord | None = None) -> Divergence | None:
+    """Where two frames' messages first differ. ``replayed_record`` and ``previous`` (the
+    replayed frame and the one before, which matched the recording) give the state of a
+    part that one side's changed-only frame does not list."""
     frame, t = inputs.frame, inputs.time_ns
     for index in range(max(len(recorded), len(replayed))):
         if index >= len(recorded) or index >= len(replayed):
@@ -228,9 +250,16 @@ def _divergence(inputs: TrackerFrame, recorded: list[tuple[str, bytes]],
             names_b = [p.get("name") for p in b.get("parts") or [] if isinstance(p, dict)]
             for name in names_a + names_b:
                 if (name in names_a) != (name in names_b):
-                    return Divergence(frame, t, topic_a, name, "listed as changed",
-                                      "yes" if name in names_a else "no (unchanged)",
-                                      "yes" if name in names_b else "no (unchanged)")
+                    # Unlisted in the recording: as it was last frame, when the two runs
+                    # still agreed. Unlisted in the replay: as it is in the replayed frame.
+                    was = _part_as_listed(name, a.get("parts") or [], previous)
+                    now = _part_as_listed(name, b.get("parts") or [], replayed_record)
+                    found = _first_difference(was, now) if was and now else None
+                    if found is None:
+                        return Divergence(frame, t, topic_a, name, "listed as changed",
+                                          "yes" if name in names_a else "no (unchanged)",
+                                          "yes" if name in names_b else "no (unchanged)")
+                    return Divergence(frame, t, topic_a, name, *found)
         found = _first_difference(a, b)
         if found is None:
             # Same values, other bytes: not what this encoder writes, so not bit for bit.
@@ -352,7 +381,8 @@ def record(session: Session, out: str | Path, *,
     partial, target = partial_output(out)
     scene = session.build_scene()
     collision = CollisionWorld(scene)
-    summary = RunSummary(session.name, parts=[p.name for p in scene.parts])
+    summary = RunSummary(session.name, parts=[p.name for p in scene.parts],
+                         warnings=session.warnings())
     first_time = None
     frame = None
     writer = RecordingWriter(partial, session, scene)
@@ -402,11 +432,13 @@ def replay_frames(recording: Recording, scene: Scene, *, check: bool = True,
     measuring the step with the check off)."""
     advance = Stepper(scene, collision or CollisionWorld(scene))
     encoder = codec.FrameEncoder(recording.parts_encoding)
+    previous = None
     for recorded in recording.frames():
         replayed = advance(recorded.inputs)
         derived = encoder.derived_messages(replayed)
         divergence = None if not check or recorded.derived == derived \
-            else _divergence(recorded.inputs, recorded.derived, derived)
+            else _divergence(recorded.inputs, recorded.derived, derived, replayed, previous)
+        previous = replayed
         yield ReplayFrame(recorded, replayed, derived, divergence)
 
 
@@ -508,7 +540,8 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     scene = session.build_scene()
     collision = CollisionWorld(scene)
     summary = RunSummary(session.name, parts=[p.name for p in scene.parts], overrides=applied,
-                         physics_changed=physics_changes(recording, scene.physics, applied))
+                         physics_changed=physics_changes(recording, scene.physics, applied),
+                         warnings=session.warnings() if applied else [])
     writer = None
     partial = target = None
     if out is not None:
@@ -525,6 +558,7 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     first_time = None
     advance = Stepper(scene, collision)
     encoder = codec.FrameEncoder(recording.parts_encoding)
+    previous: FrameRecord | None = None
     try:
         try:
             # One loop, no generators between the reader and the check, and a ReplayFrame
@@ -533,7 +567,9 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
                 replayed = advance(recorded.inputs)
                 derived = encoder.derived_messages(replayed)
                 divergence = None if recorded.derived == derived \
-                    else _divergence(recorded.inputs, recorded.derived, derived)
+                    else _divergence(recorded.inputs, recorded.derived, derived, replayed,
+                                     previous)
+                previous = replayed
                 if first_time is None:
                     first_time = replayed.time_ns
                 summary.count(replayed, first_time)

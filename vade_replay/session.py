@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 from dataclasses import dataclass
 from importlib import metadata as importlib_metadata
 from importlib import resources
@@ -18,7 +19,7 @@ from typing import TYPE_CHECKING, Iterator
 from . import inputs
 from .errors import SessionError, VadeError
 from .frames import TrackerFrame
-from .scene import Scene, build_scene
+from .scene import UNIT_TO_M, Scene, build_scene
 
 if TYPE_CHECKING:
     import jsonschema
@@ -153,6 +154,27 @@ class Session:
                 # mistake): the schema names the bad field instead of a traceback.
                 validate(self.doc, file=self.source)
             raise
+
+    def warnings(self) -> list[str]:
+        """What is allowed but most likely a slip: gravity far from Earth's once converted
+        from the session's units, keyframes after the session ends."""
+        out = []
+        units = self.doc.get("units", "m")
+        gravity = (self.doc.get("physics") or {}).get("gravity")
+        if gravity is not None:
+            g = math.sqrt(sum(float(v) ** 2 for v in gravity)) * UNIT_TO_M[units]
+            if g != 0.0 and not 1.0 <= g <= 30.0:
+                out.append(f"physics.gravity is {g:.4g} m/s^2: it is in the session's units "
+                           f"({units}/s^2), so Earth's is {9.81 / UNIT_TO_M[units]:g}")
+        tracker = self.doc["tracker"]
+        end = float(tracker.get("duration_s", 0.0))
+        for name, frames in sorted((tracker.get("devices") or {}).items()):
+            late = [kf["t"] for kf in frames if kf["t"] > end]
+            if "duration_s" in tracker and late:
+                out.append(f"tracker.devices.{name}: {len(late)} keyframe"
+                           f"{'s' if len(late) > 1 else ''} after duration_s ({end:g} s), "
+                           f"never reached (first at t = {late[0]:g} s)")
+        return out
 
     def tracker_frames(self) -> Iterator[TrackerFrame]:
         """The tracker stream to record (keyframes resampled, or the CSV log)."""

@@ -3,13 +3,14 @@
 A table is written into a temporary file beside it and moved over it only when the whole
 run is done, so that a run that fails leaves the old file (or none), never a table of half
 a run; a path that is not a regular file (a pipe, ``/dev/stdout``) is written in place and
-never removed. Any failure to write is a ``TableError``: one line naming the option.
+never removed, and ``-`` is standard output. Any failure to write is a ``TableError``: one line naming the option.
 """
 
 from __future__ import annotations
 
 import csv
 import os
+import sys
 import tempfile
 from pathlib import Path
 from typing import Callable, TextIO
@@ -18,6 +19,9 @@ from .errors import ConfigError
 from .frames import FrameRecord
 from .recording import in_place
 from .replay import EVENT_COLUMNS, POSE_COLUMNS, event_rows, pose_rows
+
+# A table's path that means standard output (the run's own lines then go to stderr).
+STDOUT = "-"
 
 # Table kind -> its columns and the rows of one frame.
 FRAME_TABLES: dict[str, tuple[tuple[str, ...], Callable[[str, FrameRecord, int], list[dict]]]] = {
@@ -41,6 +45,10 @@ class TableFile:
         self.path, self.option = path, option
         self.target = Path(path).resolve()
         self.temp: str | None = None
+        self.stdout = path == STDOUT
+        if self.stdout:
+            self.stream = sys.stdout
+            return
         try:
             if in_place(Path(path)):
                 self.stream: TextIO = open(path, "w", newline="", encoding="utf-8")
@@ -65,6 +73,9 @@ class TableFile:
 
     def commit(self) -> None:
         try:
+            if self.stdout:
+                self.stream.flush()
+                return
             self.stream.close()
             if self.temp is not None:
                 os.replace(self.temp, self.target)
@@ -74,6 +85,8 @@ class TableFile:
             raise self.error(exc) from None
 
     def discard(self) -> None:
+        if self.stdout:
+            return
         try:
             self.stream.close()
         except OSError:
