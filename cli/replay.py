@@ -361,6 +361,10 @@ def _verdict(summary, overrides: dict[str, str], *, short: bool = False) -> str:
             else "departs from the recording: " + summary.first_divergence["text"])
         if summary.physics_changed and not summary.match and not short:
             text += "\n" + _physics_note(summary.physics_changed)
+        changes = getattr(summary, "analysis_changes", None)
+        if changes is not None and not short:
+            text += ("\nanalysis: " + "; ".join(changes)) if changes \
+                else "\nanalysis: unchanged"
     return text
 
 
@@ -395,7 +399,7 @@ def _one(args, path: str, overrides: dict[str, str], outputs: dict[str, TableFil
     if args.json:
         print_json(summary.to_dict())
     else:
-        print(_verdict(summary, overrides), file=_lines)
+        print(_verdict(SimpleNamespace(**summary.to_dict()), overrides), file=_lines)
     if "--csv" in outputs:
         _write_table(outputs["--csv"], [{**summary.to_dict(), "recording": path}])
     if args.rerun:

@@ -271,3 +271,34 @@ def test_a_table_that_cannot_be_written_stops_the_run_at_once(tmp_path):
             assert "--poses" in result.stderr and "No space left" in result.stderr
             assert "Traceback" not in result.stderr
             assert link.is_symlink() and Path("/dev/full").is_char_device()
+
+
+@pytest.mark.parametrize("name", sorted(p.stem for p in RECORDINGS.glob("*.mcap")))
+def test_a_what_if_folds_the_recorded_frames_to_the_recordings_own_analysis(name):
+    """A what-if also folds the recording's decoded frames: with a change that alters
+    nothing, that analysis is the replay's, field for field, and no change is named."""
+    path = RECORDINGS / f"{name}.mcap"
+    plain = replay(Recording(path)).to_dict()
+    assert "recorded_analysis" not in plain and "analysis_changes" not in plain
+    # An override that changes nothing (the model every golden uses): the same run.
+    same = replay(Recording(path), overrides={"physics.model": "general"})
+    assert same.match and same.overrides
+    summary = same.to_dict()
+    assert summary["recorded_analysis"] == plain["analysis"] == summary["analysis"]
+    assert summary["analysis_changes"] == []
+
+
+def test_a_what_if_names_how_the_analysis_changed():
+    """Would a 10 kg hoist have lifted the 20 kg ring? No: the comparison says what that
+    did to the study's numbers, besides the frame where the runs part."""
+    summary = replay(Recording(RECORDINGS / "hoist_placed.mcap"),
+                     overrides={"tools.hoist.max_mass_kg": "10"}).to_dict()
+    assert summary["analysis_changes"] == [
+        "ring: grabs 1 -> 0, tool_grabs 1 -> 0, releases 1 -> 0, refused_grabs 1 -> 2, "
+        "placed_at_s 3.4 s -> never",
+        "refused grabs too_heavy_for_tool: 0 -> 1"]
+    assert summary["recorded_analysis"]["parts"]["ring"]["placed_at_s"] == pytest.approx(3.4)
+    result = run_cli("vade-replay", str(RECORDINGS / "hoist_placed.mcap"), "--set",
+                     "tools.hoist.max_mass_kg=10")
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.splitlines()[-1].startswith("analysis: ring: grabs 1 -> 0")

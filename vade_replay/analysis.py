@@ -112,3 +112,38 @@ class SessionAnalysis:
                 times[mode] = times.get(mode, 0.0) + (self._last_ns - since) / 1e9
             out[name] = {**stats.as_dict(), "time_in_state_s": dict(sorted(times.items()))}
         return {"parts": out, "refused_grabs": dict(sorted(self.refused_grabs.items()))}
+
+
+# The per-part numbers a what-if's comparison names (the seconds in each state are left to
+# the tables: they move a little with any change).
+COMPARED = ("grabs", "two_hand_grabs", "tool_grabs", "catches", "releases", "drops", "slid_off",
+            "lifted_off", "blocked", "refused_grabs", "placed_at_s")
+
+
+def compare(recorded: dict, replayed: dict) -> list[str]:
+    """How a what-if's analysis differs from the recording's (both as ``result`` gives
+    them): ``"ring: grabs 1 -> 0"``, ``"refused grabs too_heavy_for_tool: 0 -> 1"``; empty
+    when the same."""
+    out = []
+    parts_a, parts_b = recorded["parts"], replayed["parts"]
+    for name in sorted(set(parts_a) | set(parts_b)):
+        a, b = parts_a.get(name, {}), parts_b.get(name, {})
+        changed = []
+        for key in COMPARED:
+            before, after = a.get(key), b.get(key)
+            if before != after:
+                changed.append(f"{key} {_shown(before)} -> {_shown(after)}")
+        if changed:
+            out.append(f"{name}: " + ", ".join(changed))
+    causes_a, causes_b = recorded["refused_grabs"], replayed["refused_grabs"]
+    for cause in sorted(set(causes_a) | set(causes_b)):
+        if causes_a.get(cause, 0) != causes_b.get(cause, 0):
+            out.append(f"refused grabs {cause}: {causes_a.get(cause, 0)} -> "
+                       f"{causes_b.get(cause, 0)}")
+    return out
+
+
+def _shown(value) -> str:
+    if value is None:
+        return "never"
+    return f"{value:g} s" if isinstance(value, float) else str(value)

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Callable, Iterable, Iterator
 
 from . import codec, native
-from .analysis import SessionAnalysis
+from .analysis import SessionAnalysis, compare
 from .collision import CollisionWorld
 from .errors import ConfigError, RecordingError, SessionError, VadeError
 from .frames import FrameRecord, TrackerFrame
@@ -82,11 +82,18 @@ class RunSummary:
     # give the same bits; it says where to look when two machines disagree.
     build: str = field(default_factory=native.describe)
     analysis: SessionAnalysis = field(default_factory=SessionAnalysis)
+    # A what-if's: the recording's own analysis, and how the changed run's differs from it
+    # (``analysis.compare``). None for a plain replay, whose analysis is the recording's.
+    recorded_analysis: SessionAnalysis | None = None
 
     def to_dict(self) -> dict:
         """JSON-ready: what ``--json`` prints."""
-        out = {k: v for k, v in self.__dict__.items() if k != "analysis"}
+        out = {k: v for k, v in self.__dict__.items()
+               if k not in ("analysis", "recorded_analysis")}
         out["analysis"] = self.analysis.result()
+        if self.recorded_analysis is not None:
+            out["recorded_analysis"] = self.recorded_analysis.result()
+            out["analysis_changes"] = compare(out["recorded_analysis"], out["analysis"])
         return out
 
     def count(self, record: FrameRecord, first_time_ns: int) -> None:
@@ -559,6 +566,10 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     advance = Stepper(scene, collision)
     encoder = codec.FrameEncoder(recording.parts_encoding)
     previous: FrameRecord | None = None
+    # A what-if also folds the recorded frames, decoded, for the comparison of analyses.
+    decoded: FrameRecord | None = None
+    if applied:
+        summary.recorded_analysis = SessionAnalysis()
     try:
         try:
             # One loop, no generators between the reader and the check, and a ReplayFrame
@@ -574,6 +585,9 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
                     first_time = replayed.time_ns
                 summary.count(replayed, first_time)
                 summary.messages_checked += len(recorded.derived)
+                if summary.recorded_analysis is not None:
+                    decoded = recorded_record(recorded, decoded)
+                    summary.recorded_analysis.add(decoded)
                 if divergence and summary.first_divergence is None:
                     summary.first_divergence = divergence.__dict__ | {
                         "text": divergence.describe()}
