@@ -494,3 +494,29 @@ def test_a_what_if_warns_of_gravity_in_the_wrong_units():
     assert "warning:" in result.stderr and "0.0098 m/s^2" in result.stderr
     plain = run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"))
     assert plain.stderr == ""
+
+
+def test_schema_slips_are_named_as_a_user_wrote_them(tmp_path):
+    """A typo of a required key names the key written; a CSV tracker without its
+    quaternion order names that field, not "not valid under any of the given schemas"."""
+    doc = json.loads((RECORDINGS / "shaft_placed.json").read_text())
+    doc["parts"][0]["shape"]["radus"] = doc["parts"][0]["shape"].pop("radius")
+    _assert_clean_error(run_cli("vade-record", str(_write(tmp_path, doc))), "parts[0].shape",
+                        "'radius' is a required property", "'radus' a typo")
+    doc = _doc()
+    doc["tracker"] = {"csv": "log.csv", "csv_units": "mm"}
+    _assert_clean_error(run_cli("vade-record", str(_write(tmp_path, doc))), "field tracker",
+                        "'csv_quaternion_order' is a required property")
+
+
+def test_a_zero_direction_and_a_part_too_small_to_hold_are_named(tmp_path):
+    doc = json.loads((RECORDINGS / "shaft_placed.json").read_text())
+    doc["parts"][0]["assembly"]["constraints"][0]["base"]["direction"] = [0, 0, 0]
+    _assert_clean_error(run_cli("vade-record", str(_write(tmp_path, doc))),
+                        "parts[0].assembly.constraints[0].base.direction", "zero vector")
+    # Metres written in a mm session: a peg 0.08 mm across, not a mass of round-off.
+    doc = _doc()
+    doc["units"] = "mm"
+    result = run_cli("vade-record", str(_write(tmp_path, doc)), process=True)
+    _assert_clean_error(result, "mm across", "units")
+    assert "RuntimeWarning" not in result.stderr

@@ -440,9 +440,21 @@ def _body(doc: dict, length_factor: float, files: dict[str, bytes], *, where: st
         initial_mode=mode, color=tuple(doc["color"]) if "color" in doc else None)
 
 
+# A part smaller than this across is refused as a units slip (0.1 mm).
+_MIN_SIZE_M = 1e-4
+_UNIT_NAMES = {factor: name for name, factor in UNIT_TO_M.items()}
+
+
 def _geometry(doc: dict, length_factor: float, files: dict[str, bytes], *, where: str,
               file: str, needs_mass: bool):
     mesh = _mesh_from_shape(doc["shape"], length_factor, files, where=where, file=file)
+    size = float(np.max(mesh.extents)) if len(mesh.vertices) else 0.0
+    if size < _MIN_SIZE_M:
+        # Nothing a hand assembles is this small: lengths in metres in a mm file, most likely
+        # (and trimesh's mass properties of it are round-off).
+        raise SessionError(f"the part is {size * 1e3:.3g} mm across: are the session's units "
+                           f"right? (lengths are in its units, {_UNIT_NAMES.get(length_factor, '')})",
+                           file=file, field=f"{where}.shape")
     if needs_mass:
         props = _mass_properties(doc, mesh, length_factor, files, where=where, file=file)
     else:
@@ -468,6 +480,13 @@ def _assembly(doc: dict, part: Body, base: Body, physics: Physics, f: float, *, 
         here = f"{where}.constraints[{i}]"
         kind = mdoc["type"]
         key = "direction" if kind == "axis" else "normal"
+        for side in ("part", "base"):
+            features = mdoc[side] if isinstance(mdoc[side], list) else [mdoc[side]]
+            for j, feature in enumerate(features):
+                if not any(float(v) for v in feature[key]):
+                    at = f"{here}.{side}" + (f"[{j}]" if kind == "planes" else "")
+                    raise SessionError(f"the {key} is a zero vector: it must point somewhere",
+                                       file=file, field=f"{at}.{key}")
         if kind == "planes":
             part_features = [_feature(d, key, f) for d in mdoc["part"]]
             base_features = [_feature(d, key, f) for d in mdoc["base"]]

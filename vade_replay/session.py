@@ -86,7 +86,7 @@ def validate(doc: object, *, file: str) -> None:
     errors = sorted(_validator().iter_errors(doc), key=lambda e: (list(e.absolute_path), e.message))
     if errors:
         import jsonschema
-        error = jsonschema.exceptions.best_match(errors)
+        error = _branch_error(jsonschema.exceptions.best_match(errors))
         field = _path(error)
         if error.validator == "additionalProperties" and isinstance(error.instance, dict):
             # Name the unexpected key itself, and what would have been allowed.
@@ -96,7 +96,41 @@ def validate(doc: object, *, file: str) -> None:
                 field = f"{field}.{extra[0]}" if field != "(top level)" else extra[0]
                 raise SessionError(f"unknown field {extra[0]!r}; allowed: {', '.join(known)}",
                                    file=file, field=field)
-        raise SessionError(error.message, file=file, field=field)
+        message = error.message
+        if error.validator == "required" and isinstance(error.instance, dict):
+            # A typo of the required key ("radus" for "radius"): name the key written.
+            import difflib
+            missing = [k for k in error.validator_value if k not in error.instance]
+            written = [k for k in error.instance if k not in error.validator_value]
+            for key in missing:
+                close = difflib.get_close_matches(key, written, n=1, cutoff=0.7)
+                if close:
+                    message += f" (is {close[0]!r} a typo of it?)"
+                    break
+        raise SessionError(message, file=file, field=field)
+
+
+def _branch_error(error):
+    """For "not valid under any of the given schemas" (a ``oneOf`` or ``anyOf``), the error
+    of the alternative the value was most likely meant as: the one whose fields it uses
+    (a tracker with ``csv`` is a CSV log), then the one with the fewest errors."""
+    while error.validator in ("oneOf", "anyOf") and error.context:
+        branches: dict[int, list] = {}
+        for sub in error.context:
+            branches.setdefault(sub.schema_path[0], []).append(sub)
+        instance = error.instance
+
+        def fit(item):
+            index, subs = item
+            schema = error.schema[error.validator][index]
+            props = schema.get("properties", {}) if isinstance(schema, dict) else {}
+            used = sum(k in props for k in instance) if isinstance(instance, dict) else 0
+            return (-used, len(subs))
+
+        _, subs = min(branches.items(), key=fit)
+        import jsonschema
+        error = jsonschema.exceptions.best_match(subs)
+    return error
 
 
 # The first bytes of every MCAP file.
