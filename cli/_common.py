@@ -18,8 +18,9 @@ def run(main: Callable[[list[str] | None], int], argv: list[str] | None = None) 
     except VadeError as exc:
         print(f"error: {exc.describe()}", file=sys.stderr)
         return EXIT_UNUSABLE
-    except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
+    except KeyboardInterrupt as exc:
+        notes = getattr(exc, "__notes__", [])
+        print("interrupted" + "".join(f"; {note}" for note in notes), file=sys.stderr)
         return 130
 
 

@@ -413,13 +413,20 @@ def record(session: Session, out: str | Path, *,
         exc.message += (f" (the {writer.frames} frame{'s' if writer.frames != 1 else ''} before it "
                         f"are kept in {partial})")
         raise type(exc)(exc.message, file=exc.file, field=exc.field, frame=exc.frame) from None
-    except BaseException:
+    except BaseException as exc:
         writer.close()
+        if isinstance(exc, KeyboardInterrupt) and writer.frames:
+            exc.add_note(_kept(writer.frames, partial))
         raise
     writer.close()
     complete_output(partial, target)
     summary.counters = dict(collision.stats)
     return summary
+
+
+def _kept(frames: int, partial: Path) -> str:
+    """Where an interrupted run's frames are (``run`` prints the note)."""
+    return f"the {frames} frame{'s' if frames != 1 else ''} written so far are kept in {partial}"
 
 
 @dataclass
@@ -610,9 +617,11 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
         exc.message += (f" (the {writer.frames} regenerated frame"
                         f"{'s' if writer.frames != 1 else ''} before it are kept in {partial})")
         raise type(exc)(exc.message, file=exc.file, field=exc.field, frame=exc.frame) from None
-    except BaseException:
+    except BaseException as exc:
         if writer:
             writer.close()
+            if isinstance(exc, KeyboardInterrupt) and writer.frames and partial is not None:
+                exc.add_note(_kept(writer.frames, partial))
         raise
     if writer and partial is not None:
         writer.close()
