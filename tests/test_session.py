@@ -214,3 +214,13 @@ def test_likely_slips_are_warned_of_not_refused():
     doc["tracker"]["devices"]["right_hand"].pop()
     doc["units"] = "m"
     assert make_session(doc).warnings() == []
+
+
+def test_a_csv_log_with_the_wrong_time_unit_is_warned_of():
+    """A log in milliseconds read as seconds records a session of hours: named on loading."""
+    doc = _csv_doc()
+    assert make_session(doc, {"log.csv": CSV.encode()}).warnings() == []
+    doc["tracker"]["csv_time_unit"] = "us"  # its 0.1 s steps read as 0.1 us
+    (warning,) = make_session(doc, {"log.csv": CSV.encode()}).warnings()
+    assert warning.startswith("tracker.csv_time_unit: the log's frames are 1e-07 s apart "
+                              "read as us")

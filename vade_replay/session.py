@@ -201,6 +201,13 @@ class Session:
                 out.append(f"physics.gravity is {g:.4g} m/s^2: it is in the session's units "
                            f"({units}/s^2), so Earth's is {9.81 / UNIT_TO_M[units]:g}")
         tracker = self.doc["tracker"]
+        if "csv" in tracker:
+            gap = self._csv_sample_gap_s()
+            unit = tracker.get("csv_time_unit", "s")
+            if gap is not None and not 1e-4 <= gap <= 1.0:
+                out.append(f"tracker.csv_time_unit: the log's frames are {gap:.4g} s apart "
+                           f"read as {unit}; a tracker samples every few ms: is the unit "
+                           "right?")
         end = float(tracker.get("duration_s", 0.0))
         for name, frames in sorted((tracker.get("devices") or {}).items()):
             late = [kf["t"] for kf in frames if kf["t"] > end]
@@ -209,6 +216,20 @@ class Session:
                            f"{'s' if len(late) > 1 else ''} after duration_s ({end:g} s), "
                            f"never reached (first at t = {late[0]:g} s)")
         return out
+
+    def _csv_sample_gap_s(self) -> float | None:
+        """The median time between the first frames of a CSV log (None if it has fewer than
+        two, or cannot be read: recording names that)."""
+        times = []
+        try:
+            for frame in self.tracker_frames():
+                times.append(frame.time_ns)
+                if len(times) == 201:
+                    break
+        except VadeError:
+            pass
+        gaps = sorted(b - a for a, b in zip(times, times[1:]) if b > a)
+        return gaps[len(gaps) // 2] * 1e-9 if gaps else None
 
     def tracker_frames(self) -> Iterator[TrackerFrame]:
         """The tracker stream to record (keyframes resampled, or the CSV log)."""
