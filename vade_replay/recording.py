@@ -369,7 +369,7 @@ class Recording:
         """Frames in the order written, streaming chunk by chunk."""
         topics: dict[int, str] = {}
         current: RecordedFrame | None = None
-        complete = False
+        complete = data_end = False
         count = 0
         try:
             with open(self.path, "rb") as stream:
@@ -392,7 +392,7 @@ class Recording:
                         elif isinstance(record, Channel):
                             topics[record.id] = record.topic
                         else:  # DataEnd, Footer
-                            complete = True
+                            complete = data_end = True
                 except _READ_ERRORS as exc:
                     at = stream.tell()
                     if not (isinstance(exc, (EndOfFile, EOFError)) or at >= size):
@@ -406,9 +406,11 @@ class Recording:
         except OSError:
             complete = False
         if not complete:
-            # Cut short: the last frame read may lack some of its messages; drop it.
             self.truncated = True
-            return
+            if not data_end:
+                # Cut short in its data: the last frame read may lack some of its messages;
+                # drop it. (Cut after the data's end record, only the index is lost.)
+                return
         if current is not None:
             yield current
 
