@@ -78,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
     _check_output_paths(args)
     global _lines
     _lines = sys.stdout
-    if STDOUT in [path for _, path in _table_options(args)]:
+    if any(_is_stdout(path) for _, path in _table_options(args)):
         if args.json:
             raise ConfigError("--json and a table on standard output (-) cannot share it: "
                               "give the table a file", field="--json")
@@ -119,13 +119,23 @@ def _check_output_paths(args) -> None:
     for option, given in [("-o", args.output), ("--rerun", args.rerun), *_table_options(args)]:
         if not given:
             continue
-        target = Path(given).resolve()
+        target = _where(given)
         for other, paths in others:
-            if any(p and Path(p).resolve() == target for p in paths):
+            if any(p and _where(p) == target for p in paths):
                 what = "the table" if option in ("--csv", "--events", "--poses") else option
-                raise ConfigError(f"refusing to write {what} over {given}, which is also "
+                place = "standard output" if _is_stdout(given) else given
+                raise ConfigError(f"refusing to write {what} to {place}, which is also "
                                   f"{other}", field=option)
         others.append((option, [given]))
+
+
+def _where(path: str) -> Path:
+    """Where a path writes: ``-`` is standard output, as ``/dev/stdout`` is."""
+    return Path("/dev/stdout" if path == STDOUT else path).resolve()
+
+
+def _is_stdout(path: str) -> bool:
+    return path == STDOUT or _where(path) == _where(STDOUT)
 
 
 def _table_options(args) -> list[tuple[str, str]]:
@@ -247,8 +257,16 @@ def _results_in_workers(args, overrides: dict[str, str], outputs: dict[str, Tabl
     from concurrent.futures import ProcessPoolExecutor
 
     kinds = _frame_kinds(outputs)
-    folder = tempfile.mkdtemp(prefix=".vade-replay-",
-                              dir=outputs[f"--{kinds[0]}"].target.parent) if kinds else None
+    folder = None
+    if kinds:
+        # Beside a table that is a file (the same file system as its final move); the
+        # system's temporary folder for standard output, a pipe or a device.
+        files = [outputs[f"--{kind}"] for kind in kinds if outputs[f"--{kind}"].seekable]
+        try:
+            folder = tempfile.mkdtemp(prefix=".vade-replay-",
+                                      dir=files[0].target.parent if files else None)
+        except OSError as exc:
+            raise outputs[f"--{kinds[0]}"].error(exc) from None
     try:
         tables = [{kind: (f"{folder}/{i}.{kind}.csv", f"--{kind}") for kind in kinds}
                   for i in range(len(args.recordings))]

@@ -295,10 +295,63 @@ def test_a_what_if_names_how_the_analysis_changed():
                      overrides={"tools.hoist.max_mass_kg": "10"}).to_dict()
     assert summary["analysis_changes"] == [
         "ring: grabs 1 -> 0, tool_grabs 1 -> 0, releases 1 -> 0, refused_grabs 1 -> 2, "
-        "placed_at_s 3.4 s -> never",
+        "placed_at_s 3.4 s -> never, ONBASESLIDE 0.200 s -> 0.000 s, ONTOOL 2.400 s -> "
+        "0.000 s, PLACED 0.600 s -> 0.000 s, STATIC 0.800 s -> 4.000 s",
         "refused grabs too_heavy_for_tool: 0 -> 1"]
     assert summary["recorded_analysis"]["parts"]["ring"]["placed_at_s"] == pytest.approx(3.4)
     result = run_cli("vade-replay", str(RECORDINGS / "hoist_placed.mcap"), "--set",
                      "tools.hoist.max_mass_kg=10")
     assert result.returncode == 0, result.stderr
     assert result.stdout.splitlines()[-1].startswith("analysis: ring: grabs 1 -> 0")
+
+
+def test_a_what_if_names_changed_seconds_in_a_state():
+    """Stronger gravity in flight: the same counts, but the peg lands sooner; the
+    comparison names the seconds moved between INSPACE and STATIC, not "unchanged"."""
+    summary = replay(Recording(RECORDINGS / "drop_on_table.mcap"),
+                     overrides={"physics.gravity_scale_free": "1.0"}).to_dict()
+    (change,) = summary["analysis_changes"]
+    before = summary["recorded_analysis"]["parts"]["peg"]["time_in_state_s"]
+    after = summary["analysis"]["parts"]["peg"]["time_in_state_s"]
+    assert after["INSPACE"] < before["INSPACE"] - 0.1
+    assert change == (f"peg: INSPACE {before['INSPACE']:.3f} s -> {after['INSPACE']:.3f} s, "
+                      f"STATIC {before['STATIC']:.3f} s -> {after['STATIC']:.3f} s")
+
+
+def test_a_what_if_on_a_recording_it_cannot_fully_read_goes_on_without_the_comparison(
+        tmp_path):
+    """A damaged /parts message: a plain replay names it as a divergence; a what-if still
+    runs, and says why it has no comparison."""
+    import json as json_
+    from mcap_edit import copy_recording
+
+    def drop_xyzw(topic, index, data):
+        if topic == "/parts" and index == 60:
+            doc = json_.loads(data)
+            (doc["parts"][0] if doc["parts"] else doc["base"]).pop("xyzw")
+            return json_.dumps(doc).encode()
+        return data
+    bad = tmp_path / "bad.mcap"
+    copy_recording(RECORDINGS / "drop_on_table.mcap", bad, drop_xyzw)
+    assert not replay(Recording(bad)).match
+    summary = replay(Recording(bad), overrides={"physics.gravity_scale_free": "0.25"}).to_dict()
+    assert summary["frames"] == 151 and "analysis_changes" not in summary
+    assert any(w.startswith("no comparison with the recording's analysis: its frame 60")
+               for w in summary["warnings"])
+
+
+def test_a_what_if_warns_only_of_what_its_changes_bring(tmp_path):
+    """The recording's own slips were warned of when it was made; a what-if names only the
+    ones its --set values bring."""
+    import json as json_
+    from vade_replay.session import load
+    doc = json_.loads((RECORDINGS / "drop_on_table.json").read_text())
+    doc["tracker"]["devices"]["right_hand"].append({"t": 99.0})
+    path = tmp_path / "late.json"
+    path.write_text(json_.dumps(doc))
+    out = tmp_path / "late.mcap"
+    from vade_replay.replay import record
+    assert len(record(load(path), out).warnings) == 1
+    assert replay(Recording(out), overrides={"physics.friction_static": "0.6"}).warnings == []
+    (warning,) = replay(Recording(out), overrides={"physics.gravity": "[0, 0, -0.0098]"}).warnings
+    assert warning.startswith("physics.gravity is 0.0098 m/s^2")

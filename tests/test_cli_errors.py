@@ -462,11 +462,15 @@ def test_a_table_on_standard_output(tmp_path):
     rows = list(csv.DictReader(io.StringIO(result.stdout)))
     assert [(r["recording"], r["part"], r["match"]) for r in rows] == [
         (files[0], "peg", "True"), (files[1], "ring", "True")]
-    assert "2 recordings: 2 match" in result.stderr and not (tmp_path / "-").exists()
+    from conftest import ROOT
+    assert "2 recordings: 2 match" in result.stderr and not (ROOT / "-").exists()
     events = run_cli("vade-replay", files[0], "--events", "-", process=True)
     assert events.stdout.splitlines()[0].startswith("recording,frame,time_s,kind")
     assert "match" in events.stderr
     _assert_clean_error(run_cli("vade-replay", files[0], "--csv", "-", "--json"), "--json")
+    # /dev/stdout is standard output too: not two tables mixed there.
+    _assert_clean_error(run_cli("vade-replay", files[0], "--csv", "-", "--events",
+                                "/dev/stdout"), "--events", "standard output")
 
 
 def test_the_table_marks_a_recording_cut_short(tmp_path):
@@ -507,6 +511,18 @@ def test_schema_slips_are_named_as_a_user_wrote_them(tmp_path):
     doc["tracker"] = {"csv": "log.csv", "csv_units": "mm"}
     _assert_clean_error(run_cli("vade-record", str(_write(tmp_path, doc))), "field tracker",
                         "'csv_quaternion_order' is a required property")
+    # The alternative whose fields it uses, not the first one listed: a CSV log with a
+    # stray duration_s, mass properties without their inertia.
+    doc["tracker"] = {"csv": "log.csv", "duration_s": 2.5}
+    _assert_clean_error(run_cli("vade-record", str(_write(tmp_path, doc))), "field tracker",
+                        "'csv_quaternion_order' is a required property")
+    doc = _doc()
+    part = doc["parts"][0]
+    part.pop("density", None)
+    part["mass_properties"] = {"mass": 0.2, "center_of_mass": [0, 0, 0]}
+    result = run_cli("vade-record", str(_write(tmp_path, doc)))
+    _assert_clean_error(result, "parts[0].mass_properties", "required property")
+    assert "'file'" not in result.stderr
 
 
 def test_a_zero_direction_and_a_part_too_small_to_hold_are_named(tmp_path):

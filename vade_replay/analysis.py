@@ -114,16 +114,20 @@ class SessionAnalysis:
         return {"parts": out, "refused_grabs": dict(sorted(self.refused_grabs.items()))}
 
 
-# The per-part numbers a what-if's comparison names (the seconds in each state are left to
-# the tables: they move a little with any change).
+# The per-part numbers a what-if's comparison names, besides the seconds in each state.
 COMPARED = ("grabs", "two_hand_grabs", "tool_grabs", "catches", "releases", "drops", "slid_off",
             "lifted_off", "blocked", "refused_grabs", "placed_at_s")
 
 
+# The least change of the seconds in a state that a comparison names (round-off of the
+# frame times is far below it).
+_TIME_CHANGE_S = 1e-3
+
+
 def compare(recorded: dict, replayed: dict) -> list[str]:
     """How a what-if's analysis differs from the recording's (both as ``result`` gives
-    them): ``"ring: grabs 1 -> 0"``, ``"refused grabs too_heavy_for_tool: 0 -> 1"``; empty
-    when the same."""
+    them): ``"ring: grabs 1 -> 0, INSPACE 0.517 s -> 0.267 s"``, ``"refused grabs
+    too_heavy_for_tool: 0 -> 1"``; empty when the same (seconds to within 1 ms)."""
     out = []
     parts_a, parts_b = recorded["parts"], replayed["parts"]
     for name in sorted(set(parts_a) | set(parts_b)):
@@ -133,6 +137,11 @@ def compare(recorded: dict, replayed: dict) -> list[str]:
             before, after = a.get(key), b.get(key)
             if before != after:
                 changed.append(f"{key} {_shown(before)} -> {_shown(after)}")
+        times_a, times_b = a.get("time_in_state_s", {}), b.get("time_in_state_s", {})
+        for mode in sorted(set(times_a) | set(times_b)):
+            before_s, after_s = times_a.get(mode, 0.0), times_b.get(mode, 0.0)
+            if abs(before_s - after_s) >= _TIME_CHANGE_S:
+                changed.append(f"{mode} {before_s:.3f} s -> {after_s:.3f} s")
         if changed:
             out.append(f"{name}: " + ", ".join(changed))
     causes_a, causes_b = recorded["refused_grabs"], replayed["refused_grabs"]

@@ -337,7 +337,7 @@ class Recording:
             return f"cannot read it: {error.strerror or error}"
         if not first:
             return "an empty file, not a recording"
-        if first.lstrip()[:1] in (b"{", b"["):
+        if first.removeprefix(b"\xef\xbb\xbf").lstrip()[:1] in (b"{", b"["):
             return ("not a recording: this looks like a session file (JSON); record it with "
                     "vade-record first")
         if not (first.startswith(MCAP_MAGIC) or MCAP_MAGIC.startswith(first)):

@@ -424,6 +424,13 @@ def record(session: Session, out: str | Path, *,
     return summary
 
 
+def _introduced(changed: Session, recorded: Session) -> list[str]:
+    """A what-if's warnings: those of the changed session that the recorded one lacks (the
+    slips of its ``--set`` values, not the recording's own, warned of when it was made)."""
+    before = set(recorded.warnings())
+    return [warning for warning in changed.warnings() if warning not in before]
+
+
 def _kept(frames: int, partial: Path) -> str:
     """Where an interrupted run's frames are (``run`` prints the note)."""
     return f"the {frames} frame{'s' if frames != 1 else ''} written so far are kept in {partial}"
@@ -555,7 +562,7 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     collision = CollisionWorld(scene)
     summary = RunSummary(session.name, parts=[p.name for p in scene.parts], overrides=applied,
                          physics_changed=physics_changes(recording, scene.physics, applied),
-                         warnings=session.warnings() if applied else [])
+                         warnings=_introduced(session, recording.session) if applied else [])
     writer = None
     partial = target = None
     if out is not None:
@@ -593,8 +600,16 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
                 summary.count(replayed, first_time)
                 summary.messages_checked += len(recorded.derived)
                 if summary.recorded_analysis is not None:
-                    decoded = recorded_record(recorded, decoded)
-                    summary.recorded_analysis.add(decoded)
+                    try:
+                        decoded = recorded_record(recorded, decoded)
+                        summary.recorded_analysis.add(decoded)
+                    except VadeError as exc:
+                        # A recorded message this cannot read (a plain replay names it as
+                        # a divergence): the what-if goes on, without the comparison.
+                        summary.recorded_analysis = None
+                        summary.warnings.append(
+                            f"no comparison with the recording's analysis: its frame "
+                            f"{recorded.inputs.frame} cannot be read ({exc.message})")
                 if divergence and summary.first_divergence is None:
                     summary.first_divergence = divergence.__dict__ | {
                         "text": divergence.describe()}

@@ -452,7 +452,7 @@ def _geometry(doc: dict, length_factor: float, files: dict[str, bytes], *, where
     if size < _MIN_SIZE_M:
         # Nothing a hand assembles is this small: lengths in metres in a mm file, most likely
         # (and trimesh's mass properties of it are round-off).
-        raise SessionError(f"the part is {size * 1e3:.3g} mm across: are the session's units "
+        raise SessionError(f"it is {size * 1e3:.3g} mm across: are the session's units "
                            f"right? (lengths are in its units, {_UNIT_NAMES.get(length_factor, '')})",
                            file=file, field=f"{where}.shape")
     if needs_mass:

@@ -112,8 +112,9 @@ def validate(doc: object, *, file: str) -> None:
 
 def _branch_error(error):
     """For "not valid under any of the given schemas" (a ``oneOf`` or ``anyOf``), the error
-    of the alternative the value was most likely meant as: the one whose fields it uses
-    (a tracker with ``csv`` is a CSV log), then the one with the fewest errors."""
+    of the alternative the value was most likely meant as: the one whose first required key
+    it has (a tracker with ``csv`` is a CSV log), then the one whose fields it uses most,
+    then the one with the fewest errors."""
     while error.validator in ("oneOf", "anyOf") and error.context:
         branches: dict[int, list] = {}
         for sub in error.context:
@@ -123,9 +124,16 @@ def _branch_error(error):
         def fit(item):
             index, subs = item
             schema = error.schema[error.validator][index]
-            props = schema.get("properties", {}) if isinstance(schema, dict) else {}
-            used = sum(k in props for k in instance) if isinstance(instance, dict) else 0
-            return (-used, len(subs))
+            names: set = set()
+            required: list = []
+            if isinstance(schema, dict):
+                required = list(schema.get("required", []))
+                names = set(schema.get("properties", {})) | set(required)
+            if not isinstance(instance, dict):
+                return (0, 0, len(subs))
+            # The first required key names the alternative (devices or csv, file or mass).
+            named = bool(required) and required[0] in instance
+            return (-named, -sum(k in names for k in instance), len(subs))
 
         _, subs = min(branches.items(), key=fit)
         import jsonschema
@@ -273,6 +281,8 @@ def load(path: str | Path) -> Session:
         raw = path.read_bytes()
     except OSError as exc:
         raise SessionError(f"cannot read session file: {exc.strerror}", file=str(path)) from None
+    if not raw.strip():
+        raise SessionError("an empty file, not a session", file=str(path))
     if raw.startswith(MCAP_MAGIC):
         raise SessionError("this is a recording (MCAP), not a session file: replay it with "
                            "vade-replay", file=str(path))
