@@ -8,7 +8,7 @@ from pathlib import Path
 
 from vade_replay import session as session_mod
 from vade_replay.errors import ConfigError
-from vade_replay.replay import record
+from vade_replay.replay import describe_miss, record
 
 from ._common import EXIT_OK, Progress, print_json, run
 
@@ -41,6 +41,8 @@ def main(argv: list[str] | None = None) -> int:
     else:
         print(f"recorded {summary.frames} frames ({summary.duration_s:.2f} s, "
               f"{summary.transitions} transitions) of {session.name} to {out}")
+        for miss in summary.release_misses:
+            print(f"not on a constraint: {describe_miss(miss)}")
     return EXIT_OK
 
 

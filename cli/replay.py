@@ -14,7 +14,8 @@ from typing import Iterator, TextIO
 
 from vade_replay.errors import ConfigError
 from vade_replay.recording import Recording, ensure_writable
-from vade_replay.replay import ANALYSIS_COLUMNS, analysis_rows, as_recorded, replay
+from vade_replay.replay import (ANALYSIS_COLUMNS, analysis_rows, as_recorded, describe_miss,
+                                replay)
 from vade_replay.tables import FRAME_TABLES, STDOUT, FrameTables, TableError, TableFile
 
 from vade_replay.errors import VadeError
@@ -383,6 +384,9 @@ def _verdict(summary, overrides: dict[str, str], *, short: bool = False) -> str:
         if changes is not None and not short:
             text += ("\nanalysis: " + "; ".join(changes)) if changes \
                 else "\nanalysis: unchanged"
+    if not short:
+        for miss in getattr(summary, "release_misses", []):
+            text += f"\nnot on a constraint: {describe_miss(miss)}"
     return text
 
 

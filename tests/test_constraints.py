@@ -132,3 +132,56 @@ def test_plane_block_tilts_past_the_friction_angle_before_sliding():
             assert math.degrees(math.atan(0.4)) < tilt < math.degrees(math.atan(0.4)) + 0.6
             return
     raise AssertionError("never slid")
+
+
+def test_misalignment_is_the_angle_and_distance_recognition_holds_to_tolerance():
+    """The plate 3 mm above its plane and tilted 6 deg: (6 deg, 3 mm) to round-off; the
+    gear's bore 2 mm off the shaft and tilted 4 deg: (4 deg, 2 mm). Recognition is exactly
+    "both within tolerance"."""
+    plate = _mate(plate_scene())
+    tilt = sp.quat_axis_angle((1.0, 1.0, 0.0), math.radians(6.0))
+    # Tilted about its own feature point, which sits 3 mm off the base's plane.
+    above = sp.add(plate.base_points[0], sp.scale(plate.base_dirs[0], 0.003))
+    pose = sp.Pose(sp.sub(above, sp.quat_rotate(tilt, plate.part_points[0])), tilt)
+    angle, distance = cn.misalignment(plate, pose)
+    assert math.degrees(angle) == pytest.approx(6.0, abs=1e-9)
+    assert distance == pytest.approx(0.003, abs=1e-12)
+    gear = _mate(gear_scene())
+    u, point = gear.base_dirs[0], gear.part_points[0]
+    aligned = cn._rotation_between(gear.part_dirs[0], u)
+    for off_m, tilt_deg in ((0.002, 4.0), (0.006, 4.0), (0.002, 12.0)):
+        # Aligned, tilted about an axis across the shaft, its bore point on the shaft's
+        # point and then pushed sideways off the shaft.
+        q = sp.quat_mul(sp.quat_axis_angle(_side(gear), math.radians(tilt_deg)), aligned)
+        target = sp.add(gear.base_points[0], sp.scale(sp.cross(u, _side(gear)), off_m))
+        moved = sp.Pose(sp.sub(target, sp.quat_rotate(q, point)), q)
+        angle, distance = cn.misalignment(gear, moved)
+        assert math.degrees(angle) == pytest.approx(tilt_deg, abs=1e-9)
+        assert distance == pytest.approx(off_m, abs=1e-12)
+        within = off_m <= gear.distance_tolerance and angle <= gear.angle_tolerance
+        assert (cn.recognise(gear, moved) is not None) == within
+
+
+def _side(mate) -> sp.Vec3:
+    """A unit vector across the mate's axis."""
+    u = mate.base_dirs[0]
+    helper = (1.0, 0.0, 0.0) if abs(u[0]) < 0.9 else (0.0, 1.0, 0.0)
+    return sp.normalize(sp.cross(u, helper))
+
+
+def test_a_release_that_misses_its_constraint_says_by_how_much(tmp_path):
+    """The sleeve let go 8 mm beside the shaft (the hand's keyframe moved 8 mm across it):
+    not on the constraint, and the summary names it, 8 mm off against 5 mm."""
+    from vade_replay.replay import describe_miss, record
+    doc = json.loads((RECORDINGS / "shaft_placed.json").read_text())
+    doc["tracker"]["devices"]["right_hand"][3]["position"] = [0.008, 0.2, 1.05]
+    summary = record(session_mod.parse(json.dumps(doc).encode(), {}, source="miss.json"),
+                     tmp_path / "miss.mcap")
+    (miss,) = summary.release_misses
+    assert (miss["part"], miss["nearest_constraint"], miss["frame"]) == (
+        "sleeve", "bore_on_shaft", 78)
+    assert miss["off_distance_m"] == pytest.approx(0.008, abs=1e-9)
+    assert miss["distance_tolerance_m"] == pytest.approx(0.005)
+    assert "8 mm and 0 deg off bore_on_shaft (tolerances 5 mm" in describe_miss(miss)
+    on = record(session_mod.load(RECORDINGS / "shaft_placed.json"), tmp_path / "on.mcap")
+    assert on.release_misses == []

@@ -238,6 +238,26 @@ def _triad(a: sp.Vec3, b: sp.Vec3) -> sp.Mat3:
     return (e1, sp.cross(e3, e1), e3)
 
 
+def misalignment(mate: Mate, base_from_part: sp.Pose) -> tuple[float, float]:
+    """How far the part's features are from the base's: ``(angle (rad), distance (m))``,
+    the quantities ``recognise`` holds to the mate's tolerances (for two planes, the larger
+    of the pair's). Why a release was not on the constraint, for a study."""
+    q = base_from_part.rotation
+    dirs = [sp.quat_rotate(q, d) for d in mate.part_dirs]
+    points = [base_from_part.apply(p) for p in mate.part_points]
+    if mate.kind == "axis":
+        u_b = mate.base_dirs[0]
+        u_p = dirs[0] if sp.dot(dirs[0], u_b) >= 0.0 else sp.scale(dirs[0], -1.0)
+        rel = sp.sub(points[0], mate.base_points[0])
+        off = sp.sub(rel, sp.scale(u_b, sp.dot(rel, u_b)))
+        return _angle(u_p, u_b), sp.norm(off)
+    angle = distance = 0.0
+    for d, p, bp, bn in zip(dirs, points, mate.base_points, mate.base_dirs):
+        angle = max(angle, _angle(d, sp.scale(bn, -1.0)))
+        distance = max(distance, abs(sp.dot(sp.sub(p, bp), bn)))
+    return angle, distance
+
+
 def recognise(mate: Mate, base_from_part: sp.Pose) -> sp.Pose | None:
     """The snapped ``base_from_part`` if the part's features are within tolerance, else None.
 
@@ -245,34 +265,21 @@ def recognise(mate: Mate, base_from_part: sp.Pose) -> sp.Pose | None:
     feature point) and the offset with the smallest translation, so the part keeps its
     position along the axis or in the plane and its angle about the axis.
     """
+    angle, distance = misalignment(mate, base_from_part)
+    if angle > mate.angle_tolerance or distance > mate.distance_tolerance:
+        return None
     q = base_from_part.rotation
     dirs = [sp.quat_rotate(q, d) for d in mate.part_dirs]
     points = [base_from_part.apply(p) for p in mate.part_points]
     if mate.kind == "axis":
         u_b = mate.base_dirs[0]
         u_p = dirs[0] if sp.dot(dirs[0], u_b) >= 0.0 else sp.scale(dirs[0], -1.0)
-        if _angle(u_p, u_b) > mate.angle_tolerance:
-            return None
-        rel = sp.sub(points[0], mate.base_points[0])
-        off = sp.sub(rel, sp.scale(u_b, sp.dot(rel, u_b)))
-        if sp.norm(off) > mate.distance_tolerance:
-            return None
         fix = _rotation_between(u_p, u_b)
     elif mate.kind == "plane":
         target = sp.scale(mate.base_dirs[0], -1.0)
-        if _angle(dirs[0], target) > mate.angle_tolerance:
-            return None
-        if abs(sp.dot(sp.sub(points[0], mate.base_points[0]), mate.base_dirs[0])) \
-                > mate.distance_tolerance:
-            return None
         fix = _rotation_between(dirs[0], target)
     else:
         targets = [sp.scale(n, -1.0) for n in mate.base_dirs]
-        for d, t, p, bp, bn in zip(dirs, targets, points, mate.base_points, mate.base_dirs):
-            if _angle(d, t) > mate.angle_tolerance:
-                return None
-            if abs(sp.dot(sp.sub(p, bp), bn)) > mate.distance_tolerance:
-                return None
         # The rotation taking the part's normal pair onto the base's (reversed) pair.
         src, dst = _triad(dirs[0], dirs[1]), _triad(targets[0], targets[1])
         fix = sp.quat_from_matrix(sp.mat_mul(sp.transpose(dst), src))

@@ -16,15 +16,17 @@ from pathlib import Path
 from typing import Callable, Iterable, Iterator
 
 from . import codec, native
+from . import constraints as cn
 from .analysis import SessionAnalysis, compare
 from .collision import CollisionWorld
 from .errors import ConfigError, RecordingError, SessionError, VadeError
 from .frames import FrameRecord, TrackerFrame
-from .modes import Mode
+from .modes import Cause, Mode
 from .recording import (RecordedFrame, Recording, RecordingWriter, complete_output,
                         partial_output, physics_metadata)
 from .scene import LENGTH_FIELDS, PAPER_DEFAULTS, Physics, Scene
 from .session import Session, parse, strict_json
+from .spatial import Pose
 from .step import Stepper
 
 
@@ -78,6 +80,9 @@ class RunSummary:
     # What the session allows but is most likely a slip (``Session.warnings``): of the
     # session recorded, or of a what-if's changed one.
     warnings: list[str] = field(default_factory=list)
+    # Releases of a part with constraints that did not go onto one: how far off the nearest
+    # was (``release_misses``), for "why did it not snap?".
+    release_misses: list[dict] = field(default_factory=list)
     # Which build ran the frames (native.describe): compiled or the Python sources. Both
     # give the same bits; it says where to look when two machines disagree.
     build: str = field(default_factory=native.describe)
@@ -400,6 +405,8 @@ def record(session: Session, out: str | Path, *,
                 first_time = record_.time_ns
             writer.write_frame(record_)
             summary.count(record_, first_time)
+            if record_.events:
+                summary.release_misses += release_misses(scene, record_, first_time)
             if on_frame:
                 on_frame(record_)
     except VadeError as exc:
@@ -429,6 +436,53 @@ def _introduced(changed: Session, recorded: Session) -> list[str]:
     slips of its ``--set`` values, not the recording's own, warned of when it was made)."""
     before = set(recorded.warnings())
     return [warning for warning in changed.warnings() if warning not in before]
+
+
+# Releases that put a part onto a constraint or its final pose: no miss to tell of.
+_ON_A_MATE = frozenset({Cause.RELEASED_ON_BASE.value, Cause.RELEASED_AT_FINAL_POSE.value})
+
+
+def release_misses(scene: Scene, record: FrameRecord, first_time_ns: int) -> list[dict]:
+    """For each part released in ``record`` that has constraints but went onto none: the
+    constraint it came nearest (by the larger of its angle and distance over their
+    tolerances) and how far off it was, at the pose it was let go in."""
+    out: list[dict] = []
+    if record.base is None:
+        return out
+    base_pose = Pose(record.base.position, record.base.rotation_xyzw)
+    for event in record.events:
+        if event.kind != "PartReleased" or event.cause in _ON_A_MATE:
+            continue
+        body = next((b for b in scene.parts if b.name == event.part), None)
+        snap = next((p for p in record.parts if p.name == event.part), None)
+        if body is None or snap is None or body.assembly is None or not body.assembly.mates:
+            continue
+        base_from_part = base_pose.inverse().compose(Pose(snap.position, snap.rotation_xyzw))
+        best = None
+        for mate in body.assembly.mates:
+            angle, distance = cn.misalignment(mate, base_from_part)
+            score = max(angle / mate.angle_tolerance if mate.angle_tolerance else 0.0,
+                        distance / mate.distance_tolerance if mate.distance_tolerance else 0.0)
+            if best is None or score < best[0]:
+                best = (score, mate, angle, distance)
+        _, mate, angle, distance = best  # type: ignore[misc]
+        out.append({"frame": record.frame,
+                    "time_s": (record.time_ns - first_time_ns) / 1e9, "part": event.part,
+                    "cause": event.cause, "nearest_constraint": mate.name,
+                    "off_distance_m": distance, "distance_tolerance_m": mate.distance_tolerance,
+                    "off_angle_deg": math.degrees(angle),
+                    "angle_tolerance_deg": math.degrees(mate.angle_tolerance)})
+    return out
+
+
+def describe_miss(miss: dict) -> str:
+    """One line: ``frame 84 (t = 1.400 s): peg released 6.1 mm and 2.0 deg off
+    bore_on_shaft (tolerances 5 mm, 5 deg)``."""
+    return (f"frame {miss['frame']} (t = {miss['time_s']:.3f} s): {miss['part']} released "
+            f"{miss['off_distance_m'] * 1e3:.3g} mm and {miss['off_angle_deg']:.3g} deg off "
+            f"{miss['nearest_constraint']} (tolerances "
+            f"{miss['distance_tolerance_m'] * 1e3:.3g} mm, {miss['angle_tolerance_deg']:.3g} "
+            f"deg): {miss['cause']}")
 
 
 def _kept(frames: int, partial: Path) -> str:
@@ -599,6 +653,8 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
                     first_time = replayed.time_ns
                 summary.count(replayed, first_time)
                 summary.messages_checked += len(recorded.derived)
+                if replayed.events:
+                    summary.release_misses += release_misses(scene, replayed, first_time)
                 if summary.recorded_analysis is not None:
                     try:
                         decoded = recorded_record(recorded, decoded)
