@@ -185,3 +185,46 @@ def test_a_release_that_misses_its_constraint_says_by_how_much(tmp_path):
     assert "8 mm and 0 deg off bore_on_shaft (tolerances 5 mm" in describe_miss(miss)
     on = record(session_mod.load(RECORDINGS / "shaft_placed.json"), tmp_path / "on.mcap")
     assert on.release_misses == []
+
+
+def test_a_what_if_of_a_constraints_tolerance_answers_would_it_have_snapped(tmp_path):
+    """The sleeve let go 8 mm off the shaft: with the recognition distance at 10 mm it goes
+    onto the shaft, slides down and is placed; the summary says where the runs part and what
+    it did to the study's numbers."""
+    from vade_replay.recording import Recording
+    from vade_replay.replay import apply_overrides, record, replay
+    doc = json.loads((RECORDINGS / "shaft_placed.json").read_text())
+    doc["tracker"]["devices"]["right_hand"][3]["position"] = [0.008, 0.2, 1.05]
+    path = tmp_path / "miss.mcap"
+    record(session_mod.parse(json.dumps(doc).encode(), {}, source="miss.json"), path)
+    key = "parts.sleeve.constraints.bore_on_shaft.tolerance.distance"
+    summary = replay(Recording(path), overrides={key: "0.01"})
+    assert summary.first_divergence["frame"] == 78 and summary.release_misses == []
+    assert summary.first_divergence["replayed"] in ("ONBASESLIDE", "ONBASESTATIC", "PLACED")
+    result = summary.to_dict()
+    assert result["analysis"]["parts"]["sleeve"]["placed_at_s"] is not None
+    assert result["recorded_analysis"]["parts"]["sleeve"]["placed_at_s"] is None
+    # 7 mm is still too tight: the same run as recorded.
+    assert replay(Recording(path), overrides={key: "0.007"}).match
+    # A part's own friction stands against a physics-wide one, in any order given.
+    session = Recording(path).session
+    changed, _ = apply_overrides(session, {
+        "parts.sleeve.constraints.bore_on_shaft.friction.static": "0.9",
+        "physics.friction_static": "0.1"})
+    constraint = changed.doc["parts"][0]["assembly"]["constraints"][0]
+    assert constraint["friction"]["static"] == 0.9 and changed.doc["physics"][
+        "friction_static"] == 0.1
+
+
+@pytest.mark.parametrize("key, needle", [
+    ("parts.sleve.constraints.bore_on_shaft.tolerance.distance", "no part 'sleve'"),
+    ("parts.sleeve.constraints.bore.tolerance.distance", "its constraints: bore_on_shaft"),
+    ("parts.sleeve.constraints.bore_on_shaft.radius", "tolerance.distance, tolerance.angle_deg"),
+    ("parts.sleeve.constraints.bore_on_shaft.tolerance.distance", "minimum")])
+def test_a_constraint_what_if_that_names_nothing_says_what_does(key, needle):
+    from conftest import run_cli
+    value = "-1" if needle == "minimum" else "0.01"
+    result = run_cli("vade-replay", str(RECORDINGS / "shaft_placed.mcap"), "--set",
+                     f"{key}={value}")
+    assert result.returncode == 2 and result.stderr.startswith("error: ")
+    assert needle in result.stderr and "Traceback" not in result.stderr

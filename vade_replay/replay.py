@@ -329,14 +329,56 @@ def _override_target(doc: dict, physics: dict, key: str) -> dict:
         known = ", ".join(t.get("name", "?") for t in doc.get("tools", [])) or "none"
         raise ConfigError(f"no tool {tool!r} in this session (its tools: {known}); use "
                           "tools.TOOL.FIELD=VALUE", field=key)
-    raise ConfigError("only physics parameters and tools can be changed: physics.NAME=VALUE "
-                      "or tools.TOOL.FIELD=VALUE", field=key)
+    if key.startswith("parts."):
+        return _constraint_target(doc, key)
+    raise ConfigError("only physics parameters, tools and constraints can be changed: "
+                      "physics.NAME=VALUE, tools.TOOL.FIELD=VALUE or "
+                      "parts.PART.constraints.NAME.FIELD=VALUE", field=key)
+
+
+# What a what-if may change of a part's constraint or final pose: the recognition tolerances
+# and the friction (would a looser fit have been recognised? a stickier shaft held it?).
+_CONSTRAINT_FIELDS = ("tolerance.distance", "tolerance.angle_deg", "friction.static",
+                      "friction.dynamic", "friction.rotational", "friction.holding_torque")
+_FINAL_FIELDS = ("final_tolerance.distance", "final_tolerance.angle_deg")
+
+
+def _constraint_target(doc: dict, key: str) -> dict:
+    """``parts.PART.constraints.NAME.tolerance.distance`` (or another of
+    ``_CONSTRAINT_FIELDS``), ``parts.PART.final_tolerance.distance``: the block it changes."""
+    usage = ("a part's field is parts.PART.constraints.NAME.FIELD=VALUE (FIELD: "
+             f"{', '.join(_CONSTRAINT_FIELDS)}) or parts.PART.FIELD=VALUE (FIELD: "
+             f"{', '.join(_FINAL_FIELDS)})")
+    rest = key[6:].split(".")
+    parts = {p.get("name"): p for p in doc.get("parts", [])}
+    part = parts.get(rest[0])
+    if part is None:
+        raise ConfigError(f"no part {rest[0]!r} in this session (its parts: "
+                          f"{', '.join(sorted(map(str, parts))) or 'none'}); {usage}", field=key)
+    assembly = part.get("assembly")
+    if assembly is None:
+        raise ConfigError(f"part {rest[0]!r} has no assembly (no constraints, no final pose)",
+                          field=key)
+    if ".".join(rest[1:]) in _FINAL_FIELDS:
+        if "final_pose" not in assembly:
+            raise ConfigError(f"part {rest[0]!r} has no final pose", field=key)
+        return assembly.setdefault(rest[1], {})
+    if len(rest) != 5 or rest[1] != "constraints" or ".".join(rest[3:]) not in _CONSTRAINT_FIELDS:
+        raise ConfigError(usage, field=key)
+    constraints = assembly.get("constraints", [])
+    names = [c.get("name", f"{c.get('type')}{i}") for i, c in enumerate(constraints)]
+    if rest[2] not in names:
+        raise ConfigError(f"no constraint {rest[2]!r} on part {rest[0]!r} (its constraints: "
+                          f"{', '.join(names) or 'none'})", field=key)
+    return constraints[names.index(rest[2])].setdefault(rest[3], {})
 
 
 def apply_overrides(session: Session, overrides: dict[str, str]) -> tuple[Session, dict]:
     """The session as if its ``physics`` block said ``NAME: VALUE`` for each override
-    ``physics.NAME``, and its tool ``TOOL`` said ``FIELD: VALUE`` for each ``tools.TOOL.FIELD``
-    (a tool's lifting limit or reach: would a smaller hoist have done?).
+    ``physics.NAME``, its tool ``TOOL`` said ``FIELD: VALUE`` for each ``tools.TOOL.FIELD``
+    (a tool's lifting limit or reach: would a smaller hoist have done?), and a part's
+    constraint or final pose said so for ``parts.PART.constraints.NAME.tolerance.distance``
+    and the like (would a looser fit have been recognised?).
 
     Values are JSON (numbers, strings, lists) in the session's own units, exactly as they
     would be written in the session file; the changed document is validated against the
@@ -350,7 +392,9 @@ def apply_overrides(session: Session, overrides: dict[str, str]) -> tuple[Sessio
     doc = copy.deepcopy(session.doc)
     physics = doc.setdefault("physics", {})
     applied: dict[str, object] = {}
-    for key, text in sorted(overrides.items()):
+    # A part's own values after physics' (a physics friction clears the constraints' own).
+    for key, text in sorted(overrides.items(), key=lambda kv: (kv[0].startswith("parts."),
+                                                             kv[0])):
         target = _override_target(doc, physics, key)
         try:
             value = strict_json(text)
