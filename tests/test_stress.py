@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import bisect
 import math
+import sys
 
 import numpy as np
 import pytest
@@ -469,6 +470,10 @@ def test_friction_on_a_horizontal_plane_stops_a_part_in_a_straight_line(directio
 @S.examples(ci=8, full=300)
 @given(ratio=st.floats(0.0, 0.8), direction=st.floats(0.0, 2 * math.pi),
        speed=st.floats(0.01, 2.0), fd=st.floats(0.05, 1.0))
+# Pushed all but straight downhill: the across-slope speed is round-off (6.9e-14 m/s, then
+# -1.5e-14 when the part has slowed to 4 mm/s), whose angle from downhill grows as the part
+# slows (found in a full run).
+@example(ratio=0.7984047390879633, direction=8.572545777594152e-07, speed=0.75, fd=1.0)
 def test_friction_below_the_friction_angle_slows_and_stops_never_reverses(ratio, direction,
                                                                           speed, fd):
     """An incline shallower than the friction angle (tan theta = ratio f_d, f_s = f_d), pushed
@@ -495,7 +500,10 @@ def test_friction_below_the_friction_angle_slows_and_stops_never_reverses(ratio,
         v = s.parts[0].motion.slide_rate
         assert math.hypot(*v) <= math.hypot(*prev_v) * (1.0 + 1e-12)
         if v != (0.0, 0.0):
-            assert from_downhill(v) <= from_downhill(prev_v) + 1e-12
+            # Round-off: the components carry absolute errors of a few ulps of the starting
+            # speed, so their angle may wander by that over the current speed.
+            slack = 64.0 * sys.float_info.epsilon * speed / math.hypot(*v)
+            assert from_downhill(v) <= from_downhill(prev_v) + 1e-12 + slack
         if stopped is not None:
             assert s.parts[0].pose == stopped and v == (0.0, 0.0)
         elif s.parts[0].mode is Mode.ONBASESTATIC:
