@@ -355,3 +355,19 @@ def test_a_what_if_warns_only_of_what_its_changes_bring(tmp_path):
     assert replay(Recording(out), overrides={"physics.friction_static": "0.6"}).warnings == []
     (warning,) = replay(Recording(out), overrides={"physics.gravity": "[0, 0, -0.0098]"}).warnings
     assert warning.startswith("physics.gravity is 0.0098 m/s^2")
+
+
+def test_a_what_if_of_a_parts_density_asks_would_it_still_be_lifted():
+    """The 0.35 kg peg made 200 t/m^3 (25.6 kg, over both hands' 15 kg): refused at the
+    grab, and it stays on the table; a density that only changes its mass lifts it as
+    recorded (its flight does not depend on its mass)."""
+    summary = replay(Recording(RECORDINGS / "drop_on_table.mcap"),
+                     overrides={"parts.peg.density": "200000"}).to_dict()
+    assert summary["first_divergence"]["frame"] == 42
+    assert summary["analysis"]["refused_grabs"] == {"too_heavy_for_two_hands": 1}
+    assert summary["analysis"]["parts"]["peg"]["grabs"] == 0
+    assert replay(Recording(RECORDINGS / "drop_on_table.mcap"),
+                  overrides={"parts.peg.density": "5000"}).match
+    result = run_cli("vade-replay", str(RECORDINGS / "shaft_placed.mcap"), "--set",
+                     "parts.nothing.density=1")
+    assert result.returncode == 2 and "its parts: sleeve" in result.stderr

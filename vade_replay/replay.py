@@ -345,9 +345,10 @@ _FINAL_FIELDS = ("final_tolerance.distance", "final_tolerance.angle_deg")
 
 def _constraint_target(doc: dict, key: str) -> dict:
     """``parts.PART.constraints.NAME.tolerance.distance`` (or another of
-    ``_CONSTRAINT_FIELDS``), ``parts.PART.final_tolerance.distance``: the block it changes."""
+    ``_CONSTRAINT_FIELDS``), ``parts.PART.final_tolerance.distance``, ``parts.PART.density``
+    (would a heavier part still be lifted?): the block it changes."""
     usage = ("a part's field is parts.PART.constraints.NAME.FIELD=VALUE (FIELD: "
-             f"{', '.join(_CONSTRAINT_FIELDS)}) or parts.PART.FIELD=VALUE (FIELD: "
+             f"{', '.join(_CONSTRAINT_FIELDS)}) or parts.PART.FIELD=VALUE (FIELD: density, "
              f"{', '.join(_FINAL_FIELDS)})")
     rest = key[6:].split(".")
     parts = {p.get("name"): p for p in doc.get("parts", [])}
@@ -356,9 +357,14 @@ def _constraint_target(doc: dict, key: str) -> dict:
         raise ConfigError(f"no part {rest[0]!r} in this session (its parts: "
                           f"{', '.join(sorted(map(str, parts))) or 'none'}); {usage}", field=key)
     assembly = part.get("assembly")
-    if assembly is None:
+    if assembly is None and rest[1:] != ["density"]:
         raise ConfigError(f"part {rest[0]!r} has no assembly (no constraints, no final pose)",
                           field=key)
+    if rest[1:] == ["density"]:
+        if "density" not in part:
+            raise ConfigError(f"part {rest[0]!r} has its mass from mass_properties, not a "
+                              "density", field=key)
+        return part
     if ".".join(rest[1:]) in _FINAL_FIELDS:
         if "final_pose" not in assembly:
             raise ConfigError(f"part {rest[0]!r} has no final pose", field=key)
