@@ -238,24 +238,36 @@ def _triad(a: sp.Vec3, b: sp.Vec3) -> sp.Mat3:
     return (e1, sp.cross(e3, e1), e3)
 
 
-def misalignment(mate: Mate, base_from_part: sp.Pose) -> tuple[float, float]:
-    """How far the part's features are from the base's: ``(angle (rad), distance (m))``,
-    the quantities ``recognise`` holds to the mate's tolerances (for two planes, the larger
-    of the pair's). Why a release was not on the constraint, for a study."""
+def _posed(mate: Mate, base_from_part: sp.Pose) -> tuple[list[sp.Vec3], list[sp.Vec3]]:
+    """The part's feature directions and points in base axes."""
     q = base_from_part.rotation
-    dirs = [sp.quat_rotate(q, d) for d in mate.part_dirs]
-    points = [base_from_part.apply(p) for p in mate.part_points]
+    return ([sp.quat_rotate(q, d) for d in mate.part_dirs],
+            [base_from_part.apply(p) for p in mate.part_points])
+
+
+def _along(d: sp.Vec3, u: sp.Vec3) -> sp.Vec3:
+    """``d`` or its reverse, whichever points along ``u`` (an axis has no sense)."""
+    return d if sp.dot(d, u) >= 0.0 else sp.scale(d, -1.0)
+
+
+def _misalignment(mate: Mate, dirs: list[sp.Vec3], points: list[sp.Vec3]) -> tuple[float, float]:
     if mate.kind == "axis":
         u_b = mate.base_dirs[0]
-        u_p = dirs[0] if sp.dot(dirs[0], u_b) >= 0.0 else sp.scale(dirs[0], -1.0)
         rel = sp.sub(points[0], mate.base_points[0])
         off = sp.sub(rel, sp.scale(u_b, sp.dot(rel, u_b)))
-        return _angle(u_p, u_b), sp.norm(off)
+        return _angle(_along(dirs[0], u_b), u_b), sp.norm(off)
     angle = distance = 0.0
     for d, p, bp, bn in zip(dirs, points, mate.base_points, mate.base_dirs):
         angle = max(angle, _angle(d, sp.scale(bn, -1.0)))
         distance = max(distance, abs(sp.dot(sp.sub(p, bp), bn)))
     return angle, distance
+
+
+def misalignment(mate: Mate, base_from_part: sp.Pose) -> tuple[float, float]:
+    """How far the part's features are from the base's: ``(angle (rad), distance (m))``,
+    the quantities ``recognise`` holds to the mate's tolerances (for two planes, the larger
+    of the pair's). Why a release was not on the constraint, for a study."""
+    return _misalignment(mate, *_posed(mate, base_from_part))
 
 
 def recognise(mate: Mate, base_from_part: sp.Pose) -> sp.Pose | None:
@@ -265,16 +277,13 @@ def recognise(mate: Mate, base_from_part: sp.Pose) -> sp.Pose | None:
     feature point) and the offset with the smallest translation, so the part keeps its
     position along the axis or in the plane and its angle about the axis.
     """
-    angle, distance = misalignment(mate, base_from_part)
+    dirs, points = _posed(mate, base_from_part)
+    angle, distance = _misalignment(mate, dirs, points)
     if angle > mate.angle_tolerance or distance > mate.distance_tolerance:
         return None
     q = base_from_part.rotation
-    dirs = [sp.quat_rotate(q, d) for d in mate.part_dirs]
-    points = [base_from_part.apply(p) for p in mate.part_points]
     if mate.kind == "axis":
-        u_b = mate.base_dirs[0]
-        u_p = dirs[0] if sp.dot(dirs[0], u_b) >= 0.0 else sp.scale(dirs[0], -1.0)
-        fix = _rotation_between(u_p, u_b)
+        fix = _rotation_between(_along(dirs[0], mate.base_dirs[0]), mate.base_dirs[0])
     elif mate.kind == "plane":
         target = sp.scale(mate.base_dirs[0], -1.0)
         fix = _rotation_between(dirs[0], target)
