@@ -224,3 +224,16 @@ def test_a_csv_log_with_the_wrong_time_unit_is_warned_of():
     (warning,) = make_session(doc, {"log.csv": CSV.encode()}).warnings()
     assert warning.startswith("tracker.csv_time_unit: the log's frames are 1e-07 s apart "
                               "read as us")
+
+
+def test_a_typo_of_an_optional_shape_key_is_warned_of():
+    """``sectons`` for ``sections`` used to be ignored without a word (the schema lets a
+    shape carry other keys): it is named, with the key it is close to; a compound's
+    children may have a pose."""
+    doc = json.loads((RECORDINGS / "shaft_placed.json").read_text())
+    assert make_session(doc).warnings() == []
+    doc["parts"][0]["shape"]["sectons"] = 64
+    (warning,) = make_session(doc).warnings()
+    assert warning == ("parts[0].shape.sectons: not a shape's field, ignored (did you mean "
+                       "'sections'?)")
+    assert doc["base"]["shape"]["children"][1]["pose"]  # a child's pose is no typo

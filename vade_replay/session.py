@@ -110,6 +110,33 @@ def validate(doc: object, *, file: str) -> None:
         raise SessionError(message, file=file, field=field)
 
 
+def _unknown_shape_keys(doc: dict) -> list[str]:
+    """A shape's keys that no shape has (``sectons`` for ``sections``): the schema lets a
+    shape carry others, so that a typo of an optional key would pass unnoticed."""
+    import difflib
+    known = set(load_schema("session.schema.json")["$defs"]["shape"]["properties"])
+    out = []
+
+    def walk(shape: object, where: str, child: bool) -> None:
+        if not isinstance(shape, dict):
+            return
+        for key in sorted(shape):
+            if key not in known and not (child and key == "pose"):
+                close = difflib.get_close_matches(key, sorted(known), n=1)
+                out.append(f"{where}.{key}: not a shape's field, ignored"
+                           + (f" (did you mean {close[0]!r}?)" if close else ""))
+        for i, item in enumerate(shape.get("children") or []):
+            walk(item, f"{where}.children[{i}]", True)
+
+    bodies = [("base", doc.get("base"))] + [
+        (f"{group}[{i}]", body) for group in ("parts", "environment")
+        for i, body in enumerate(doc.get(group) or [])]
+    for where, body in bodies:
+        if isinstance(body, dict):
+            walk(body.get("shape"), f"{where}.shape", False)
+    return out
+
+
 def _branch_error(error):
     """For "not valid under any of the given schemas" (a ``oneOf`` or ``anyOf``), the error
     of the alternative the value was most likely meant as: the one whose first required key
@@ -208,6 +235,7 @@ class Session:
             if g != 0.0 and not 1.0 <= g <= 30.0:
                 out.append(f"physics.gravity is {g:.4g} m/s^2: it is in the session's units "
                            f"({units}/s^2), so Earth's is {9.81 / UNIT_TO_M[units]:g}")
+        out += _unknown_shape_keys(self.doc)
         tracker = self.doc["tracker"]
         if "csv" in tracker:
             gap = self._csv_sample_gap_s()
