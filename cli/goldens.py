@@ -57,6 +57,8 @@ def main(argv: list[str] | None = None) -> int:
             summary = record(session_mod.load(path), golden)
             status = f"{summary.frames} frames, {summary.transitions} transitions"
         print(f"{golden}: {status}")
+    if args.check and len(sessions) > 1:
+        print(f"{len(sessions)} goldens: {len(sessions) - failed} match, {failed} diverged")
     return EXIT_DIVERGED if failed else EXIT_OK
 
 

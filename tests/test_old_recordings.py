@@ -138,4 +138,10 @@ def test_vade_goldens_check_says_a_default_changed_since_a_golden_was_recorded(t
     assert ("recorded with other physics defaults: block_cut, final_pose_check, "
             "slide_integrator, slide_off, slide_onset, slide_step_s, two_hand_max_mass_kg; if "
             "that change is meant, re-record with vade-goldens") in result.stdout
+    # With another golden beside it that matches: a count of both at the end.
+    shutil.copy(RECORDINGS / "drop_on_table.json", tmp_path / "drop_on_table.json")
+    shutil.copy(RECORDINGS / "drop_on_table.mcap", tmp_path / "drop_on_table.mcap")
+    result = run_cli("vade-goldens", "--check", "--dir", str(tmp_path))
+    assert result.returncode == 1
+    assert result.stdout.splitlines()[-1] == "2 goldens: 1 match, 1 diverged"
 
