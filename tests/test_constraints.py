@@ -185,6 +185,14 @@ def test_a_release_that_misses_its_constraint_says_by_how_much(tmp_path):
     assert "8 mm and 0 deg off bore_on_shaft (tolerances 5 mm" in describe_miss(miss)
     on = record(session_mod.load(RECORDINGS / "shaft_placed.json"), tmp_path / "on.mcap")
     assert on.release_misses == []
+    # A study's table counts them per part.
+    import csv
+    from conftest import run_cli
+    table = tmp_path / "t.csv"
+    result = run_cli("vade-replay", str(tmp_path / "miss.mcap"), str(tmp_path / "on.mcap"),
+                     "--csv", str(table))
+    assert result.returncode == 0, result.stderr
+    assert [row["release_misses"] for row in csv.DictReader(table.open())] == ["1", "0"]
 
 
 def test_a_what_if_of_a_constraints_tolerance_answers_would_it_have_snapped(tmp_path):

@@ -121,7 +121,7 @@ PART_COUNTS = ("grabs", "catches", "releases", "drops", "slid_off", "lifted_off"
 ANALYSIS_COLUMNS = ("recording", "session", "match", "first_divergence_frame", "frames",
                     "duration_s", "part", *PART_COUNTS, "placed_at_s",
                     *(f"s_{mode.value}" for mode in Mode), "session_refused_grabs", "error",
-                    "overrides", "truncated")
+                    "overrides", "truncated", "release_misses")
 
 
 # The run frame by frame as tables (``vade-replay --events``, ``--poses``), for a study's own
@@ -190,6 +190,9 @@ def analysis_rows(recording: str, summary: dict) -> list[dict]:
                "placed_at_s": "" if stats["placed_at_s"] is None else stats["placed_at_s"]}
         row.update({key: stats[key] for key in PART_COUNTS})
         row.update({f"s_{mode.value}": times.get(mode.value, 0.0) for mode in Mode})
+        # Its releases that went onto no constraint (the distances are in --json).
+        row["release_misses"] = sum(miss["part"] == name
+                                    for miss in summary.get("release_misses") or ())
         rows.append({column: row[column] for column in ANALYSIS_COLUMNS})
     return rows
 
