@@ -12,11 +12,11 @@ import sys
 from pathlib import Path
 
 from vade_replay import session as session_mod
-from vade_replay.errors import ConfigError
+from vade_replay.errors import ConfigError, VadeError
 from vade_replay.recording import Recording
 from vade_replay.replay import record, replay
 
-from ._common import EXIT_DIVERGED, EXIT_OK, run
+from ._common import EXIT_DIVERGED, EXIT_OK, EXIT_UNUSABLE, run
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -42,11 +42,17 @@ def main(argv: list[str] | None = None) -> int:
                           f"{', '.join(s.stem for s in sessions)})", file=str(folder))
     if args.names:
         sessions = [s for s in sessions if s.stem in args.names]
-    failed = 0
+    failed = unusable = 0
     for path in sessions:
         golden = path.with_suffix(".mcap")
         if args.check:
-            summary = replay(Recording(golden))
+            try:
+                summary = replay(Recording(golden))
+            except VadeError as exc:
+                # One golden missing or damaged: named, and the others still checked.
+                print(f"error: {exc.describe()}", file=sys.stderr)
+                unusable += 1
+                continue
             status = "match" if summary.match else f"DIVERGED {summary.first_divergence['text']}"
             if not summary.match and summary.physics_changed:
                 status += (f" (recorded with other physics defaults: "
@@ -58,8 +64,9 @@ def main(argv: list[str] | None = None) -> int:
             status = f"{summary.frames} frames, {summary.transitions} transitions"
         print(f"{golden}: {status}")
     if args.check and len(sessions) > 1:
-        print(f"{len(sessions)} goldens: {len(sessions) - failed} match, {failed} diverged")
-    return EXIT_DIVERGED if failed else EXIT_OK
+        print(f"{len(sessions)} goldens: {len(sessions) - failed - unusable} match, {failed} "
+              f"diverged, {unusable} could not be replayed")
+    return EXIT_UNUSABLE if unusable else EXIT_DIVERGED if failed else EXIT_OK
 
 
 def entry() -> None:

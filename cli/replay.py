@@ -35,9 +35,10 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print a JSON summary")
     p.add_argument("-o", "--output", help="write the regenerated recording here")
     p.add_argument("--set", action="append", default=[], metavar="physics.NAME=VALUE",
-                   help="what-if: replay as if the session's physics said NAME: VALUE, or with "
-                        "tools.TOOL.FIELD=VALUE its tool TOOL said FIELD: VALUE (repeatable; "
-                        "JSON value in the session's units)")
+                   help="what-if: replay as if the session's physics said NAME: VALUE; also "
+                        "tools.TOOL.FIELD=VALUE, parts.PART.constraints.NAME.FIELD=VALUE "
+                        "(tolerance.distance, friction.static, ...), parts.PART.density=VALUE "
+                        "(repeatable; JSON value in the session's units)")
     p.add_argument("--csv", metavar="OUT.csv",
                    help="write the analysis as a table: a row per recording and part (seconds in "
                         "each state, grabs, drops, ..., placed at), for a study's sessions")

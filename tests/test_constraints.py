@@ -236,3 +236,36 @@ def test_a_constraint_what_if_that_names_nothing_says_what_does(key, needle):
                      f"{key}={value}")
     assert result.returncode == 2 and result.stderr.startswith("error: ")
     assert needle in result.stderr and "Traceback" not in result.stderr
+
+
+def test_part_what_ifs_reach_dotted_names_and_refuse_a_density_that_is_not_used(tmp_path):
+    """A part named ``sleeve.v2`` (the schema allows dots) is reached by its name; a
+    density what-if on a part whose mass comes from mass_properties is refused, not
+    silently ignored."""
+    from vade_replay.replay import apply_overrides
+    doc = json.loads((RECORDINGS / "shaft_placed.json").read_text())
+    doc["parts"][0]["name"] = "sleeve.v2"
+    doc["parts"][0]["assembly"]["constraints"][0]["name"] = "bore.on.shaft"
+    session = session_mod.parse(json.dumps(doc).encode(), {}, source="dotted.json")
+    changed, _ = apply_overrides(session, {
+        "parts.sleeve.v2.constraints.bore.on.shaft.tolerance.distance": "0.01",
+        "parts.sleeve.v2.density": "5000"})
+    part = changed.doc["parts"][0]
+    assert part["assembly"]["constraints"][0]["tolerance"]["distance"] == 0.01
+    assert part["density"] == 5000
+    doc["parts"][0]["mass_properties"] = {"mass": 0.2, "center_of_mass": [0, 0, 0],
+                                          "inertia": [[1e-4, 0, 0], [0, 1e-4, 0], [0, 0, 1e-4]]}
+    session = session_mod.parse(json.dumps(doc).encode(), {}, source="both.json")
+    with pytest.raises(Exception, match="mass from mass_properties"):
+        apply_overrides(session, {"parts.sleeve.v2.density": "200000"})
+
+
+def test_a_part_put_down_away_from_its_constraint_is_not_a_miss(tmp_path):
+    """Let go on the table 0.5 m from the shaft: not an attempt at the bore, so not counted
+    as a miss of it (only releases within ten times its tolerances are)."""
+    from vade_replay.replay import record
+    doc = json.loads((RECORDINGS / "shaft_placed.json").read_text())
+    doc["tracker"]["devices"]["right_hand"][3]["position"] = [0.35, -0.2, 0.9]
+    summary = record(session_mod.parse(json.dumps(doc).encode(), {}, source="put.json"),
+                     tmp_path / "put.mcap")
+    assert summary.release_misses == []

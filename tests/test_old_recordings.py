@@ -143,5 +143,12 @@ def test_vade_goldens_check_says_a_default_changed_since_a_golden_was_recorded(t
     shutil.copy(RECORDINGS / "drop_on_table.mcap", tmp_path / "drop_on_table.mcap")
     result = run_cli("vade-goldens", "--check", "--dir", str(tmp_path))
     assert result.returncode == 1
-    assert result.stdout.splitlines()[-1] == "2 goldens: 1 match, 1 diverged"
+    assert result.stdout.splitlines()[-1] == ("2 goldens: 1 match, 1 diverged, 0 could not "
+                                              "be replayed")
+    # A golden missing: named, the others still checked, and exit 2.
+    shutil.copy(RECORDINGS / "tumbling_box.json", tmp_path / "tumbling_box.json")
+    result = run_cli("vade-goldens", "--check", "--dir", str(tmp_path))
+    assert result.returncode == 2 and "tumbling_box.mcap" in result.stderr
+    assert result.stdout.splitlines()[-1] == ("3 goldens: 1 match, 1 diverged, 1 could not "
+                                              "be replayed")
 

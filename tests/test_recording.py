@@ -255,14 +255,15 @@ def test_an_interrupted_recording_says_where_its_frames_are(tmp_path, capsys):
 
 def test_a_recording_cut_in_its_index_keeps_every_frame(tmp_path):
     """Cut after its data's end record (the summary and footer lost), a recording still
-    holds every frame whole: it is marked cut short but its last frame is not dropped."""
+    holds every frame whole: none is dropped, and it is not marked cut short (a study's
+    ``truncated`` column means frames missing)."""
     golden = (RECORDINGS / "drop_on_table.mcap").read_bytes()
     whole = len(list(Recording(RECORDINGS / "drop_on_table.mcap").frames()))
     for cut in (10, 200):
         path = tmp_path / f"cut{cut}.mcap"
         path.write_bytes(golden[:-cut])
         recording = Recording(path)
-        assert len(list(recording.frames())) == whole and recording.truncated
+        assert len(list(recording.frames())) == whole and not recording.truncated
     path = tmp_path / "mid.mcap"
     path.write_bytes(golden[:len(golden) // 2])
     recording = Recording(path)

@@ -237,3 +237,16 @@ def test_a_typo_of_an_optional_shape_key_is_warned_of():
     assert warning == ("parts[0].shape.sectons: not a shape's field, ignored (did you mean "
                        "'sections'?)")
     assert doc["base"]["shape"]["children"][1]["pose"]  # a child's pose is no typo
+
+
+def test_a_csv_log_stamping_each_device_apart_is_not_taken_for_a_wrong_unit():
+    """90 Hz, in seconds, with the head, the left and the right hand stamped 20 us apart:
+    each device's samples are 1/90 s apart, which is what the check looks at."""
+    lines = ["time,device,x,y,z,q0,q1,q2,q3,grip"]
+    for n in range(60):
+        t = n / 90.0
+        lines += [f"{t:.6f},head,-600,0,1600,1,0,0,0,0",
+                  f"{t + 20e-6:.6f},left_hand,0,200,950,1,0,0,0,1",
+                  f"{t + 40e-6:.6f},right_hand,0,0,900,1,0,0,0,0"]
+    doc = _csv_doc()
+    assert make_session(doc, {"log.csv": "\n".join(lines).encode()}).warnings() == []

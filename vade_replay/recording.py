@@ -405,12 +405,12 @@ class Recording:
                     complete = False  # cut short (a crash while recording)
         except OSError:
             complete = False
-        if not complete:
+        if not complete and not data_end:
+            # Cut short in its data: the last frame read may lack some of its messages; drop
+            # it. (Cut after the data's end record, only the index is lost: every frame is
+            # whole, and the recording is not short of any.)
             self.truncated = True
-            if not data_end:
-                # Cut short in its data: the last frame read may lack some of its messages;
-                # drop it. (Cut after the data's end record, only the index is lost.)
-                return
+            return
         if current is not None:
             yield current
 

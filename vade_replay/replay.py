@@ -349,37 +349,43 @@ _FINAL_FIELDS = ("final_tolerance.distance", "final_tolerance.angle_deg")
 def _constraint_target(doc: dict, key: str) -> dict:
     """``parts.PART.constraints.NAME.tolerance.distance`` (or another of
     ``_CONSTRAINT_FIELDS``), ``parts.PART.final_tolerance.distance``, ``parts.PART.density``
-    (would a heavier part still be lifted?): the block it changes."""
+    (would a heavier part still be lifted?): the block it changes. Names may hold dots: the
+    session's own names are matched, not the key split at every dot."""
     usage = ("a part's field is parts.PART.constraints.NAME.FIELD=VALUE (FIELD: "
              f"{', '.join(_CONSTRAINT_FIELDS)}) or parts.PART.FIELD=VALUE (FIELD: density, "
              f"{', '.join(_FINAL_FIELDS)})")
-    rest = key[6:].split(".")
-    parts = {p.get("name"): p for p in doc.get("parts", [])}
-    part = parts.get(rest[0])
-    if part is None:
-        raise ConfigError(f"no part {rest[0]!r} in this session (its parts: "
-                          f"{', '.join(sorted(map(str, parts))) or 'none'}); {usage}", field=key)
-    assembly = part.get("assembly")
-    if assembly is None and rest[1:] != ["density"]:
-        raise ConfigError(f"part {rest[0]!r} has no assembly (no constraints, no final pose)",
-                          field=key)
-    if rest[1:] == ["density"]:
-        if "density" not in part:
-            raise ConfigError(f"part {rest[0]!r} has its mass from mass_properties, not a "
+    rest = key[6:]
+    parts = {str(p.get("name")): p for p in doc.get("parts", [])}
+    named = [name for name in parts if rest.startswith(name + ".")]
+    if not named:
+        first = rest.split(".")[0]
+        raise ConfigError(f"no part {first!r} in this session (its parts: "
+                          f"{', '.join(sorted(parts)) or 'none'}); {usage}", field=key)
+    name = max(named, key=len)
+    part, field = parts[name], rest[len(name) + 1:]
+    if field == "density":
+        if "density" not in part or "mass_properties" in part:
+            raise ConfigError(f"part {name!r} has its mass from mass_properties, not a "
                               "density", field=key)
         return part
-    if ".".join(rest[1:]) in _FINAL_FIELDS:
+    assembly = part.get("assembly")
+    if assembly is None:
+        raise ConfigError(f"part {name!r} has no assembly (no constraints, no final pose)",
+                          field=key)
+    if field in _FINAL_FIELDS:
         if "final_pose" not in assembly:
-            raise ConfigError(f"part {rest[0]!r} has no final pose", field=key)
-        return assembly.setdefault(rest[1], {})
-    if len(rest) != 5 or rest[1] != "constraints" or ".".join(rest[3:]) not in _CONSTRAINT_FIELDS:
+            raise ConfigError(f"part {name!r} has no final pose", field=key)
+        return assembly.setdefault(field.split(".")[0], {})
+    leaf = next((f for f in _CONSTRAINT_FIELDS if field.endswith("." + f)), None)
+    if not field.startswith("constraints.") or leaf is None:
         raise ConfigError(usage, field=key)
+    wanted = field[len("constraints."):-len(leaf) - 1]
     constraints = assembly.get("constraints", [])
     names = [c.get("name", f"{c.get('type')}{i}") for i, c in enumerate(constraints)]
-    if rest[2] not in names:
-        raise ConfigError(f"no constraint {rest[2]!r} on part {rest[0]!r} (its constraints: "
+    if wanted not in names:
+        raise ConfigError(f"no constraint {wanted!r} on part {name!r} (its constraints: "
                           f"{', '.join(names) or 'none'})", field=key)
-    return constraints[names.index(rest[2])].setdefault(rest[3], {})
+    return constraints[names.index(wanted)].setdefault(leaf.split(".")[0], {})
 
 
 def apply_overrides(session: Session, overrides: dict[str, str]) -> tuple[Session, dict]:
@@ -496,9 +502,10 @@ _ON_A_MATE = frozenset({Cause.RELEASED_ON_BASE.value, Cause.RELEASED_AT_FINAL_PO
 
 
 def release_misses(scene: Scene, record: FrameRecord, first_time_ns: int) -> list[dict]:
-    """For each part released in ``record`` that has constraints but went onto none: the
+    """For each part released in ``record`` that has constraints but went onto none, near
+    enough to one to have been meant for it (within ``_NEAR`` times its tolerances): the
     constraint it came nearest (by the larger of its angle and distance over their
-    tolerances) and how far off it was, at the pose it was let go in."""
+    tolerances) and how far off it was, at its pose after the frame."""
     out: list[dict] = []
     if record.base is None:
         return out
@@ -514,11 +521,13 @@ def release_misses(scene: Scene, record: FrameRecord, first_time_ns: int) -> lis
         best = None
         for mate in body.assembly.mates:
             angle, distance = cn.misalignment(mate, base_from_part)
-            score = max(angle / mate.angle_tolerance if mate.angle_tolerance else 0.0,
-                        distance / mate.distance_tolerance if mate.distance_tolerance else 0.0)
+            score = max(_over(angle, mate.angle_tolerance),
+                        _over(distance, mate.distance_tolerance))
             if best is None or score < best[0]:
                 best = (score, mate, angle, distance)
-        _, mate, angle, distance = best  # type: ignore[misc]
+        score, mate, angle, distance = best  # type: ignore[misc]
+        if not score <= _NEAR:
+            continue  # put down or thrown elsewhere: not an attempt at this constraint
         out.append({"frame": record.frame,
                     "time_s": (record.time_ns - first_time_ns) / 1e9, "part": event.part,
                     "cause": event.cause, "nearest_constraint": mate.name,
@@ -526,6 +535,15 @@ def release_misses(scene: Scene, record: FrameRecord, first_time_ns: int) -> lis
                     "off_angle_deg": math.degrees(angle),
                     "angle_tolerance_deg": math.degrees(mate.angle_tolerance)})
     return out
+
+
+# A release counts as a miss of a constraint when it was within this many times both of its
+# tolerances (50 mm and 100 deg at the defaults): near enough to have been meant for it.
+_NEAR = 10.0
+
+
+def _over(value: float, tolerance: float) -> float:
+    return value / tolerance if tolerance > 0.0 else (0.0 if value == 0.0 else math.inf)
 
 
 def describe_miss(miss: dict) -> str:

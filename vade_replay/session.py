@@ -8,6 +8,7 @@ either is the same.
 from __future__ import annotations
 
 import hashlib
+import itertools
 import json
 import math
 from dataclasses import dataclass
@@ -254,18 +255,31 @@ class Session:
         return out
 
     def _csv_sample_gap_s(self) -> float | None:
-        """The median time between the first frames of a CSV log (None if it has fewer than
-        two, or cannot be read: recording names that)."""
-        times = []
-        try:
-            for frame in self.tracker_frames():
-                times.append(frame.time_ns)
-                if len(times) == 201:
-                    break
-        except VadeError:
-            pass
-        gaps = sorted(b - a for a, b in zip(times, times[1:]) if b > a)
-        return gaps[len(gaps) // 2] * 1e-9 if gaps else None
+        """The median time between a device's samples in the first rows of a CSV log (each
+        device apart: a log may stamp its devices microseconds apart), in the log's time
+        unit read as seconds; None if too few rows can be read (recording names a bad one)."""
+        import csv
+        import io
+        tracker = self.doc["tracker"]
+        scale = 1e-9 * inputs.TIME_TO_NS.get(tracker.get("csv_time_unit", "s"), 10**9)
+        rows = csv.reader(io.StringIO(self.files[tracker["csv"]].decode("utf-8-sig",
+                                                                       errors="replace")))
+        header = [h.strip().lower() for h in next(rows, [])]
+        if "time" not in header or "device" not in header:
+            return None
+        at, of = header.index("time"), header.index("device")
+        last: dict[str, float] = {}
+        gaps = []
+        for row in itertools.islice(rows, 2000):
+            try:
+                t, device = float(row[at]), row[of].strip()
+            except (IndexError, ValueError):
+                continue
+            if device in last and t > last[device]:
+                gaps.append((t - last[device]) * scale)
+            last[device] = t
+        gaps.sort()
+        return gaps[len(gaps) // 2] if gaps else None
 
     def tracker_frames(self) -> Iterator[TrackerFrame]:
         """The tracker stream to record (keyframes resampled, or the CSV log)."""
