@@ -371,3 +371,16 @@ def test_a_what_if_of_a_parts_density_asks_would_it_still_be_lifted():
     result = run_cli("vade-replay", str(RECORDINGS / "shaft_placed.mcap"), "--set",
                      "parts.nothing.density=1")
     assert result.returncode == 2 and "its parts: sleeve" in result.stderr
+
+
+def test_the_study_table_names_each_sessions_length_unit():
+    """A study may mix sessions in mm and in m: the same --set number is a length in each
+    one's own unit, so each row names it."""
+    from vade_replay.replay import analysis_rows
+    summary = replay(Recording(RECORDINGS / "hoist_placed.mcap"),
+                     overrides={"tools.hoist.grab_radius": "0.08"}).to_dict()
+    assert summary["units"] == "m"
+    (row,) = analysis_rows("hoist_placed.mcap", summary)
+    assert (row["units"], row["overrides"]) == ("m", "tools.hoist.grab_radius=0.08")
+    (row,) = analysis_rows("x.mcap", {**summary, "units": "mm"})
+    assert row["units"] == "mm"

@@ -207,8 +207,10 @@ def test_likely_slips_are_warned_of_not_refused():
     doc["units"] = "mm"
     doc["tracker"]["devices"]["right_hand"].append(
         {"t": doc["tracker"]["duration_s"] + 1.0, "grip": False})
-    gravity, late = make_session(doc).warnings()
+    gravity, near, late = make_session(doc).warnings()
     assert "0.0098 m/s^2" in gravity and "mm/s^2" in gravity and "9810" in gravity
+    # The keyframes, written in metres, read as mm: all within 1.6 mm of the origin.
+    assert near.startswith("tracker.devices: every keyframe position lies within 1.6 mm")
     assert late.startswith("tracker.devices.right_hand: 1 keyframe after duration_s")
     doc["physics"]["gravity"] = [0, 0, 0]  # weightless on purpose: no warning
     doc["tracker"]["devices"]["right_hand"].pop()

@@ -83,6 +83,8 @@ class RunSummary:
     # Releases of a part with constraints that did not go onto one: how far off the nearest
     # was (``release_misses``), for "why did it not snap?".
     release_misses: list[dict] = field(default_factory=list)
+    # The session's length unit: what a what-if's lengths (``overrides``) are in.
+    units: str = "m"
     # Which build ran the frames (native.describe): compiled or the Python sources. Both
     # give the same bits; it says where to look when two machines disagree.
     build: str = field(default_factory=native.describe)
@@ -121,7 +123,7 @@ PART_COUNTS = ("grabs", "catches", "releases", "drops", "slid_off", "lifted_off"
 ANALYSIS_COLUMNS = ("recording", "session", "match", "first_divergence_frame", "frames",
                     "duration_s", "part", *PART_COUNTS, "placed_at_s",
                     *(f"s_{mode.value}" for mode in Mode), "session_refused_grabs", "error",
-                    "overrides", "truncated", "release_misses")
+                    "overrides", "truncated", "release_misses", "units")
 
 
 # The run frame by frame as tables (``vade-replay --events``, ``--poses``), for a study's own
@@ -182,7 +184,10 @@ def analysis_rows(recording: str, summary: dict) -> list[dict]:
                "overrides": "; ".join(f"{key}={json.dumps(value)}" for key, value
                                       in sorted((summary.get("overrides") or {}).items())),
                # Cut short (a crash while recording): the frames it held, not the session.
-               "truncated": bool(summary.get("truncated"))}
+               "truncated": bool(summary.get("truncated")),
+               # The session's length unit, which a what-if's lengths are in (a study may
+               # mix sessions in mm and in m).
+               "units": summary.get("units", "m")}
     rows = []
     for name, stats in sorted(analysis["parts"].items()):
         times = stats["time_in_state_s"]
@@ -453,7 +458,7 @@ def record(session: Session, out: str | Path, *,
     scene = session.build_scene()
     collision = CollisionWorld(scene)
     summary = RunSummary(session.name, parts=[p.name for p in scene.parts],
-                         warnings=session.warnings())
+                         warnings=session.warnings(), units=session.doc.get("units", "m"))
     first_time = None
     frame = None
     writer = RecordingWriter(partial, session, scene)
@@ -686,6 +691,7 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     scene = session.build_scene()
     collision = CollisionWorld(scene)
     summary = RunSummary(session.name, parts=[p.name for p in scene.parts], overrides=applied,
+                         units=session.doc.get("units", "m"),
                          physics_changed=physics_changes(recording, scene.physics, applied),
                          warnings=_introduced(session, recording.session) if applied else [])
     writer = None
