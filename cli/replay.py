@@ -197,6 +197,8 @@ def _replay_rows(path: str, overrides: dict[str, str],
         return "summary", replay(Recording(path), overrides=overrides,
                                  on_frame=frame_tables).to_dict()
     except TableError as exc:
+        if isinstance(exc.__context__, BrokenPipeError):
+            raise  # standard output closed by its reader: the run ends quietly (run())
         return "table", (exc.message, exc.field)
     except VadeError as exc:
         if exc.file is None:

@@ -536,3 +536,21 @@ def test_a_zero_direction_and_a_part_too_small_to_hold_are_named(tmp_path):
     result = run_cli("vade-record", str(_write(tmp_path, doc)), process=True)
     _assert_clean_error(result, "mm across", "units")
     assert "RuntimeWarning" not in result.stderr
+
+
+@pytest.mark.parametrize("extra", [[], ["--poses", "-"]])
+def test_standard_output_closed_early_ends_quietly(extra):
+    """``vade-replay study/*.mcap | head -1``: no traceback, no error line; the exit code
+    of a process that SIGPIPE ended (141), as a shell's own tools give."""
+    import subprocess
+    import sys
+
+    from conftest import COMMANDS, ROOT
+    files = [str(p) for p in sorted(RECORDINGS.glob("*.mcap"))]
+    proc = subprocess.Popen([sys.executable, "-m", COMMANDS["vade-replay"], *files, *extra],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=ROOT)
+    first = proc.stdout.readline()
+    proc.stdout.close()  # the reader goes away, as `head -1` does
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=300) == 141
+    assert first and "Traceback" not in err and "error:" not in err
