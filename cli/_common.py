@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import select
 import sys
 from typing import Callable
 
@@ -16,11 +17,16 @@ EXIT_PIPE_CLOSED = 141
 def run(main: Callable[[list[str] | None], int], argv: list[str] | None = None) -> int:
     """Call ``main``; turn a ``VadeError`` into one line on stderr and exit code 2."""
     try:
-        return main(argv)
+        code = main(argv)
+        sys.stdout.flush()  # inside: what is still buffered may meet a reader gone
+        return code
     except BrokenPipeError:
-        return _pipe_closed()
+        if closed_pipe(sys.stdout):
+            return _pipe_closed()
+        print("error: a pipe written to was closed by its reader", file=sys.stderr)
+        return EXIT_UNUSABLE
     except VadeError as exc:
-        if isinstance(exc.__context__, BrokenPipeError):
+        if isinstance(exc.__context__, BrokenPipeError) and closed_pipe(sys.stdout):
             return _pipe_closed()  # a table on standard output, read by `| head`
         print(f"error: {exc.describe()}", file=sys.stderr)
         return EXIT_UNUSABLE
@@ -30,13 +36,29 @@ def run(main: Callable[[list[str] | None], int], argv: list[str] | None = None) 
         return 130
 
 
-def _pipe_closed() -> int:
-    """Standard output was closed early (``| head``): stop quietly, as a shell's tools do,
-    with the exit code of a process that SIGPIPE ended (128 + 13)."""
+def closed_pipe(stream) -> bool:
+    """Whether ``stream`` is a pipe whose reader has gone (poll reports an error on its end);
+    not a file, a terminal, or a pipe still read."""
     try:
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-    except OSError:
-        pass
+        poller = select.poll()
+        poller.register(stream.fileno(), select.POLLOUT)
+        return any(events & (select.POLLERR | select.POLLHUP) for _, events in poller.poll(0))
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
+def _pipe_closed() -> int:
+    """Standard output was closed early (``| head``): stop, as a shell's tools do, with the
+    exit code of a process that SIGPIPE ended (128 + 13). One line on stderr says what was
+    left unwritten (tables, -o and --rerun are written when a run ends)."""
+    for stream in (sys.stdout, sys.stderr):
+        if closed_pipe(stream):
+            try:
+                os.dup2(os.open(os.devnull, os.O_WRONLY), stream.fileno())
+            except (OSError, ValueError):
+                pass
+    print("stopped: standard output was closed by its reader; outputs of the run not yet "
+          "written (tables, -o, --rerun) were not written", file=sys.stderr)
     return EXIT_PIPE_CLOSED
 
 

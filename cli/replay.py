@@ -20,7 +20,8 @@ from vade_replay.tables import FRAME_TABLES, STDOUT, FrameTables, TableError, Ta
 
 from vade_replay.errors import VadeError
 
-from ._common import EXIT_DIVERGED, EXIT_OK, EXIT_UNUSABLE, Progress, print_json, run
+from ._common import (EXIT_DIVERGED, EXIT_OK, EXIT_UNUSABLE, Progress, closed_pipe, print_json,
+                      run)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -197,8 +198,8 @@ def _replay_rows(path: str, overrides: dict[str, str],
         return "summary", replay(Recording(path), overrides=overrides,
                                  on_frame=frame_tables).to_dict()
     except TableError as exc:
-        if isinstance(exc.__context__, BrokenPipeError):
-            raise  # standard output closed by its reader: the run ends quietly (run())
+        if isinstance(exc.__context__, BrokenPipeError) and closed_pipe(sys.stdout):
+            raise  # standard output closed by its reader: the run stops (run())
         return "table", (exc.message, exc.field)
     except VadeError as exc:
         if exc.file is None:

@@ -547,7 +547,6 @@ def test_standard_output_closed_early_ends_quietly():
     import sys
 
     from conftest import COMMANDS, ROOT
-    from vade_replay.cli._common import run
     files = [str(p) for p in sorted(RECORDINGS.glob("*.mcap"))]
     proc = subprocess.Popen([sys.executable, "-m", COMMANDS["vade-replay"], *files, "--poses",
                              "-"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=ROOT)
@@ -557,6 +556,48 @@ def test_standard_output_closed_early_ends_quietly():
     assert proc.wait(timeout=300) == 141
     assert first and "Traceback" not in err and "error:" not in err
 
-    def main(argv):  # a verdict line printed after the reader went
-        raise BrokenPipeError(32, "Broken pipe")
-    assert run(main, []) == 141
+    assert "stopped: standard output was closed" in err
+
+
+def test_output_still_buffered_when_the_reader_went_ends_quietly_too(tmp_path):
+    """Without PYTHONUNBUFFERED, a batch's --json is written when the run ends: far more
+    than a pipe holds, so the reader is gone before it is all written. Not 'Exception ignored'
+    and exit 120 at the interpreter's exit: 141 and one line."""
+    import os
+    import subprocess
+    import sys
+
+    from conftest import COMMANDS, ROOT
+    # ~1.1 KB of JSON a recording: 200 of them are 220 KB, over a pipe's 64 KB.
+    for i in range(200):
+        (tmp_path / f"r{i:03d}.mcap").symlink_to(RECORDINGS / "drop_on_table.mcap")
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}
+    proc = subprocess.Popen([sys.executable, "-m", COMMANDS["vade-replay"], "--json",
+                             *sorted(str(p) for p in tmp_path.iterdir())],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=ROOT, env=env)
+    first = proc.stdout.readline()
+    proc.stdout.close()
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=300) == 141 and first.strip() == b"["
+    assert "Exception ignored" not in err and "Traceback" not in err
+
+
+def test_a_named_pipe_whose_reader_went_is_an_error_not_a_quiet_stop(tmp_path):
+    """Only standard output closing is a quiet stop: a table written to a named pipe whose
+    reader died is an error naming it (exit 2), and a recording cannot go to a pipe."""
+    import os
+    import threading
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+
+    def read_a_little():
+        with open(fifo, "rb") as reader:
+            reader.read(100)
+    threading.Thread(target=read_a_little, daemon=True).start()
+    result = run_cli("vade-replay", str(RECORDINGS / "shaft_placed.mcap"), "--poses",
+                     str(fifo), process=True)
+    _assert_clean_error(result, "--poses", str(fifo), "Broken pipe")
+    threading.Thread(target=read_a_little, daemon=True).start()
+    result = run_cli("vade-replay", str(RECORDINGS / "shaft_placed.mcap"), "-o", str(fifo),
+                     process=True)
+    _assert_clean_error(result, str(fifo), "cannot write a recording to a pipe")

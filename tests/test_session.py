@@ -209,8 +209,13 @@ def test_likely_slips_are_warned_of_not_refused():
         {"t": doc["tracker"]["duration_s"] + 1.0, "grip": False})
     gravity, near, late = make_session(doc).warnings()
     assert "0.0098 m/s^2" in gravity and "mm/s^2" in gravity and "9810" in gravity
-    # The keyframes, written in metres, read as mm: all within 1.6 mm of the origin.
-    assert near.startswith("tracker.devices: every keyframe position lies within 1.6 mm")
+    # The keyframes, written in metres, read as mm: all under 3 mm from the origin.
+    assert near.startswith("tracker.devices: every keyframe position is under 3 mm from the "
+                           "origin (at most 1.6): written in metres?")
+    # In metres no smaller unit can have slipped in: hands near the origin are as meant.
+    doc["units"] = "m"
+    assert not any(w.startswith("tracker.devices: every") for w in make_session(doc).warnings())
+    doc["units"] = "mm"
     assert late.startswith("tracker.devices.right_hand: 1 keyframe after duration_s")
     doc["physics"]["gravity"] = [0, 0, 0]  # weightless on purpose: no warning
     doc["tracker"]["devices"]["right_hand"].pop()

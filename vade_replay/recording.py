@@ -198,6 +198,12 @@ class RecordingWriter:
         except OSError as exc:
             raise RecordingError(f"cannot write here: {exc.strerror or exc}",
                                  file=str(self.path)) from None
+        try:
+            self._stream.tell()  # the MCAP writer keeps offsets: a pipe has none
+        except OSError:
+            self._stream.close()
+            raise RecordingError("cannot write a recording to a pipe: an MCAP file is written "
+                                 "with offsets into it; give a file", file=str(self.path)) from None
         self._writer = Writer(self._stream, compression=CompressionType.ZSTD,
                               chunk_size=4 * 1024 * 1024)
         self._writer.start(profile=PROFILE, library=f"vade_replay {package_versions()['vade_replay']}")

@@ -111,9 +111,9 @@ def validate(doc: object, *, file: str) -> None:
         raise SessionError(message, file=file, field=field)
 
 
-# Hands and the head in VR move about a metre from the origin: keyframes all within this of
-# it were most likely written in metres in a mm session.
-_NEAR_ORIGIN_M = 0.01
+# Hands and the head in VR move about a metre or two from the origin: in a session in mm or
+# inches, keyframe numbers all under this were most likely written in metres.
+_METRES_LIKE = 3.0
 
 
 def _unknown_shape_keys(doc: dict) -> list[str]:
@@ -250,13 +250,13 @@ class Session:
                 out.append(f"tracker.csv_time_unit: the log's frames are {gap:.4g} s apart "
                            f"read as {unit}; a tracker samples every few ms: is the unit "
                            "right?")
-        reach = [max(abs(float(c)) for c in kf["position"]) * UNIT_TO_M[units]
+        reach = [max(abs(float(c)) for c in kf["position"])
                  for frames in (tracker.get("devices") or {}).values() for kf in frames
                  if "position" in kf]
-        if len(reach) >= 2 and max(reach) < _NEAR_ORIGIN_M:
-            out.append(f"tracker.devices: every keyframe position lies within "
-                       f"{max(reach) * 1e3:.3g} mm of the origin: are they in the session's "
-                       f"units ({units})?")
+        if units != "m" and reach and max(reach) < _METRES_LIKE:
+            out.append(f"tracker.devices: every keyframe position is under {_METRES_LIKE:g} "
+                       f"{units} from the origin (at most {max(reach):g}): written in metres? "
+                       f"they are read in the session's units ({units})")
         end = float(tracker.get("duration_s", 0.0))
         for name, frames in sorted((tracker.get("devices") or {}).items()):
             late = [kf["t"] for kf in frames if kf["t"] > end]
