@@ -235,7 +235,7 @@ def _part_as_listed(name: str, listed: list, record: FrameRecord | None) -> dict
             return item
     for snapshot in (record.parts if record is not None else ()):
         if snapshot.name == name:
-            return codec.loads(codec.dumps(codec.snapshot_dict(snapshot)), topic=codec.PARTS_TOPIC)
+            return codec.snapshot_dict(snapshot)
     return None
 
 
