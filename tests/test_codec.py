@@ -1,6 +1,6 @@
 """The fast frame encoder writes exactly the bytes of the reference encoder (json.dumps).
 
-Replay checks recordings byte for byte, so the encoder used to write and to check must agree
+Recordings are written by this encoder and must be the same bytes run after run, so it must agree
 with ``codec.derived_messages`` (keys sorted, fixed separators, floats as ``repr``) on every
 value, including -0.0, subnormals, ints, odd names, and parts that did not change between
 frames (whose text is reused). Values json refuses (NaN, infinity) must be refused too.
