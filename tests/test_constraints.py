@@ -269,3 +269,28 @@ def test_a_part_put_down_away_from_its_constraint_is_not_a_miss(tmp_path):
     summary = record(session_mod.parse(json.dumps(doc).encode(), {}, source="put.json"),
                      tmp_path / "put.mcap")
     assert summary.release_misses == []
+
+
+def test_two_constraints_under_one_name_are_warned_of_and_a_what_if_of_it_refused():
+    """Reports and --set name a constraint by its name: two of one part under the same name
+    are warned of when the session is read, and a what-if of that name says it cannot tell
+    which (it used to change the first without a word); a name of their own fixes both."""
+    from vade_replay.errors import ConfigError
+    from vade_replay.replay import apply_overrides
+    doc = json.loads((RECORDINGS / "shaft_placed.json").read_text())
+    constraints = doc["parts"][0]["assembly"]["constraints"]
+    constraints.append(json.loads(json.dumps(constraints[0])))
+    session = session_mod.parse(json.dumps(doc).encode(), {}, source="twice.json")
+    (warning,) = session.warnings()
+    assert warning.startswith("parts[0].assembly.constraints: 2 constraints of part 'sleeve' "
+                              "are named 'bore_on_shaft'")
+    key = "parts.sleeve.constraints.bore_on_shaft.tolerance.distance"
+    with pytest.raises(ConfigError, match="2 constraints named 'bore_on_shaft'"):
+        apply_overrides(session, {key: "0.01"})
+    constraints[1]["name"] = "bore_on_shaft_2"
+    session = session_mod.parse(json.dumps(doc).encode(), {}, source="renamed.json")
+    assert session.warnings() == []
+    changed, _ = apply_overrides(session, {key: "0.01"})
+    tolerances = [c.get("tolerance", {}).get("distance")
+                  for c in changed.doc["parts"][0]["assembly"]["constraints"]]
+    assert tolerances[0] == 0.01 and tolerances[1] != 0.01

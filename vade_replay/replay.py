@@ -393,6 +393,10 @@ def _constraint_target(doc: dict, key: str) -> dict:
     if wanted not in names:
         raise ConfigError(f"no constraint {wanted!r} on part {name!r} (its constraints: "
                           f"{', '.join(names) or 'none'})", field=key)
+    if names.count(wanted) > 1:
+        raise ConfigError(f"part {name!r} has {names.count(wanted)} constraints named "
+                          f"{wanted!r}: which one to change cannot be told (give each its "
+                          "own name in the session)", field=key)
     return constraints[names.index(wanted)].setdefault(leaf.split(".")[0], {})
 
 

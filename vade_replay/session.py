@@ -116,6 +116,20 @@ def validate(doc: object, *, file: str) -> None:
 _METRES_LIKE = 3.0
 
 
+def _shared_constraint_names(doc: dict) -> list[str]:
+    """Two constraints of one part under one name: events, release misses and ``--set``
+    name a constraint by its name, so they cannot tell the two apart."""
+    out = []
+    for i, part in enumerate(doc.get("parts") or []):
+        constraints = (part.get("assembly") or {}).get("constraints") or []
+        names = [c.get("name", f"{c.get('type')}{k}") for k, c in enumerate(constraints)]
+        for name in sorted({n for n in names if names.count(n) > 1}):
+            out.append(f"parts[{i}].assembly.constraints: {names.count(name)} constraints of "
+                       f"part {part.get('name')!r} are named {name!r}: reports and --set "
+                       "name a constraint by its name, so give each its own")
+    return out
+
+
 def _unknown_shape_keys(doc: dict) -> list[str]:
     """A shape's keys that no shape has (``sectons`` for ``sections``): the schema lets a
     shape carry others, so that a typo of an optional key would pass unnoticed."""
@@ -242,6 +256,7 @@ class Session:
                 out.append(f"physics.gravity is {g:.4g} m/s^2: it is in the session's units "
                            f"({units}/s^2), so Earth's is {9.81 / UNIT_TO_M[units]:g}")
         out += _unknown_shape_keys(self.doc)
+        out += _shared_constraint_names(self.doc)
         tracker = self.doc["tracker"]
         if "csv" in tracker:
             gap = self._csv_sample_gap_s()
