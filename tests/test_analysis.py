@@ -62,9 +62,11 @@ def test_every_statistic_of_a_part_is_reported():
     from dataclasses import fields
 
     from vade_replay.analysis import PartStats
-    stats = PartStats(grabs=2, placed_at_s=1.5)
-    assert list(stats.as_dict()) == [f.name for f in fields(PartStats)]
+    stats = PartStats(grabs=2, placed_at_s=1.5, time_in_state_ns={"STATIC": 3_883_333_334})
+    # Times are kept in whole nanoseconds and reported in seconds.
+    assert list(stats.as_dict()) == [f.name.replace("_ns", "_s") for f in fields(PartStats)]
     assert stats.as_dict()["grabs"] == 2 and stats.as_dict()["placed_at_s"] == 1.5
+    assert stats.as_dict()["time_in_state_s"] == {"STATIC": 3.883333334}
 
 
 def test_a_studys_recordings_as_one_table(tmp_path):
@@ -98,6 +100,12 @@ def test_a_studys_recordings_as_one_table(tmp_path):
         assert sum(times) == pytest.approx(summary["duration_s"], abs=1e-9)
         for mode in Mode:
             assert float(row[f"s_{mode.value}"]) == stats["time_in_state_s"].get(mode.value, 0.0)
+            # Whole nanoseconds in seconds: no round-off of a sum of frames (3.88333333399).
+            assert len(row[f"s_{mode.value}"].split(".")[-1]) <= 9
+        # The run's mass of the part: its mesh's volume times its density, as the scene has it.
+        golden = Recording(row["recording"])
+        body = next(b for b in golden.session.build_scene().parts if b.name == row["part"])
+        assert float(row["mass_kg"]) == body.mass_kg == summary["masses_kg"][row["part"]] > 0
     hoist = next(row for row in rows if row["session"] == "hoist_placed")
     assert (hoist["placed_at_s"], hoist["s_ONTOOL"], hoist["refused_grabs"],
             hoist["session_refused_grabs"], hoist["error"]) == ("3.4", "2.4", "1", "1", "")

@@ -113,3 +113,27 @@ def test_session_reads_a_report_and_rejects_an_open_mesh_without_one():
     scene = make_session(json.loads(json.dumps(doc)),
                          {"p.stl": stl, "p.m_p": _report(box).encode()}).build_scene()
     assert scene.parts[0].mass_kg == pytest.approx(0.785, rel=1e-9)
+
+
+@pytest.mark.parametrize("flip, needle", [
+    (lambda faces: np.where((np.arange(len(faces)) % 3 == 0)[:, None], faces[:, ::-1], faces),
+     "not wound consistently"),
+    (lambda faces: faces[:, ::-1], "normals are inverted")])
+def test_a_closed_mesh_wound_wrongly_is_refused_not_given_a_wrong_mass(flip, needle):
+    """A CAD export with some (or all) faces wound inward is still watertight; its volume
+    came out as the difference of the two sides (a third of the mass for every third face
+    flipped) or negative ("mass must be positive", blaming the density). Both are named on
+    the shape; the same mesh wound right gives the mass of its volume."""
+    box = trimesh.creation.box(extents=[0.1, 0.05, 0.02])
+    part = {"name": "p", "shape": {"type": "mesh", "file": "p.stl"}, "density": 2700,
+            "pose": {"position": [0, 0, 1.0]}}
+    doc = {"format": "vade-session/1", "name": "t", "parts": [part],
+           "tracker": {"duration_s": 0.1, "devices": {"right_hand": [{"t": 0}]}}}
+    bad = trimesh.Trimesh(box.vertices, flip(box.faces), process=False)
+    assert bad.is_watertight
+    with pytest.raises(SessionError) as info:
+        make_session(doc, {"p.stl": bad.export(file_type="stl")}).build_scene()
+    assert needle in str(info.value) and "parts[0].shape" in str(info.value)
+    scene = make_session(doc, {"p.stl": box.export(file_type="stl")}).build_scene()
+    # (STL holds float32 vertices: the volume to ~1e-7.)
+    assert scene.parts[0].mass_kg == pytest.approx(2700 * 0.1 * 0.05 * 0.02, rel=1e-6)

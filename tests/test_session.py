@@ -257,3 +257,32 @@ def test_a_csv_log_stamping_each_device_apart_is_not_taken_for_a_wrong_unit():
                   f"{t + 40e-6:.6f},right_hand,0,0,900,1,0,0,0,0"]
     doc = _csv_doc()
     assert make_session(doc, {"log.csv": "\n".join(lines).encode()}).warnings() == []
+
+
+def test_one_device_in_metres_and_unlikely_densities_are_warned_of():
+    """A mm session whose right hand alone was written in metres (the head and left hand in
+    mm), and densities no solid has: kg/mm^3 (7.85e-06) or g/cm^3 (7.85) for kg/m^3."""
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+    doc["units"] = "mm"
+    devices = doc["tracker"]["devices"]
+    for name, frames in devices.items():
+        for kf in frames:
+            if "position" in kf and name != "right_hand":
+                kf["position"] = [1000.0 * c for c in kf["position"]]
+    devices.setdefault("head", [{"t": 0, "position": [-600.0, 0.0, 1600.0]}])
+    for part in doc["parts"]:
+        part["pose"]["position"] = [1000.0 * c for c in part["pose"]["position"]]
+    (warning,) = make_session(doc).warnings()
+    assert warning.startswith("tracker.devices.right_hand: every keyframe position is under "
+                              "3 mm from the origin")
+    for kf in devices["right_hand"]:
+        if "position" in kf:
+            kf["position"] = [1000.0 * c for c in kf["position"]]
+    assert make_session(doc).warnings() == []
+    doc["parts"][0]["density"] = 7.85e-06
+    (warning,) = make_session(doc).warnings()
+    assert warning.startswith("parts[0].density: 7.85e-06 kg/m^3 is no solid's")
+    doc["parts"][0]["density"] = 7.85
+    assert len(make_session(doc).warnings()) == 1
+    doc["parts"][0]["density"] = 7850
+    assert make_session(doc).warnings() == []

@@ -16,7 +16,9 @@ from .frames import FrameRecord, changed_indices
 class PartStats:
     """One part's story in numbers."""
 
-    time_in_state_s: dict[str, float] = field(default_factory=dict)
+    # Whole nanoseconds, summed exactly; seconds only in ``result`` (a sum of seconds
+    # wrote 3.8833333339999996 for 233 frames at 60 Hz).
+    time_in_state_ns: dict[str, int] = field(default_factory=dict)
     grabs: int = 0
     two_hand_grabs: int = 0     # of the grabs, by both hands (a part too heavy for one)
     tool_grabs: int = 0         # of the grabs, by a tool
@@ -31,7 +33,8 @@ class PartStats:
 
     def as_dict(self) -> dict:
         # Field by field: compiled (native.MODULES), the class has no ``__dict__``.
-        return {"time_in_state_s": self.time_in_state_s, "grabs": self.grabs,
+        return {"time_in_state_s": {mode: ns / 1e9 for mode, ns in
+                                    self.time_in_state_ns.items()}, "grabs": self.grabs,
                 "two_hand_grabs": self.two_hand_grabs, "tool_grabs": self.tool_grabs,
                 "catches": self.catches, "releases": self.releases, "drops": self.drops,
                 "slid_off": self.slid_off, "lifted_off": self.lifted_off,
@@ -70,8 +73,8 @@ class SessionAnalysis:
             self._event(event, t)
 
     def _close(self, name: str, mode: str, since: int, until: int) -> None:
-        times = self.parts[name].time_in_state_s
-        times[mode] = times.get(mode, 0.0) + (until - since) / 1e9
+        times = self.parts[name].time_in_state_ns
+        times[mode] = times.get(mode, 0) + (until - since)
 
     def _event(self, event, t: int) -> None:
         if event.kind == "GrabRefused":
@@ -106,11 +109,12 @@ class SessionAnalysis:
         """Per-part statistics, with every state's time closed at the last frame."""
         out = {}
         for name, stats in sorted(self.parts.items()):
-            times = dict(stats.time_in_state_s)
+            times = dict(stats.time_in_state_ns)
             mode, since = self._mode.get(name, (None, 0))
             if mode is not None and self._last_ns is not None:
-                times[mode] = times.get(mode, 0.0) + (self._last_ns - since) / 1e9
-            out[name] = {**stats.as_dict(), "time_in_state_s": dict(sorted(times.items()))}
+                times[mode] = times.get(mode, 0) + (self._last_ns - since)
+            out[name] = {**stats.as_dict(), "time_in_state_s": {
+                mode: ns / 1e9 for mode, ns in sorted(times.items())}}
         return {"parts": out, "refused_grabs": dict(sorted(self.refused_grabs.items()))}
 
 

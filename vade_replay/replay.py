@@ -87,6 +87,9 @@ class RunSummary:
     release_misses: list[dict] = field(default_factory=list)
     # The session's length unit: what a what-if's lengths (``overrides``) are in.
     units: str = "m"
+    # Each part's mass as the run had it (from its mesh and density, or its
+    # mass_properties): a mesh in the wrong unit or a density in g/cm^3 shows here.
+    masses_kg: dict[str, float] = field(default_factory=dict)
     # Which build ran the frames (native.describe): compiled or the Python sources. Both
     # give the same bits; it says where to look when two machines disagree.
     build: str = field(default_factory=native.describe)
@@ -125,7 +128,7 @@ PART_COUNTS = ("grabs", "catches", "releases", "drops", "slid_off", "lifted_off"
 ANALYSIS_COLUMNS = ("recording", "session", "match", "first_divergence_frame", "frames",
                     "duration_s", "part", *PART_COUNTS, "placed_at_s",
                     *(f"s_{mode.value}" for mode in Mode), "session_refused_grabs", "error",
-                    "overrides", "truncated", "release_misses", "units")
+                    "overrides", "truncated", "release_misses", "units", "mass_kg")
 
 
 # The run frame by frame as tables (``vade-replay --events``, ``--poses``), for a study's own
@@ -200,6 +203,7 @@ def analysis_rows(recording: str, summary: dict) -> list[dict]:
         # Its releases that went onto no constraint (the distances are in --json).
         row["release_misses"] = sum(miss["part"] == name
                                     for miss in summary.get("release_misses") or ())
+        row["mass_kg"] = (summary.get("masses_kg") or {}).get(name, "")
         rows.append({column: row[column] for column in ANALYSIS_COLUMNS})
     return rows
 
@@ -465,7 +469,8 @@ def record(session: Session, out: str | Path, *,
     scene = session.build_scene()
     collision = CollisionWorld(scene)
     summary = RunSummary(session.name, parts=[p.name for p in scene.parts],
-                         warnings=session.warnings(), units=session.doc.get("units", "m"))
+                         warnings=session.warnings(), units=session.doc.get("units", "m"),
+                         masses_kg={p.name: p.mass_kg for p in scene.parts})
     first_time = None
     frame = None
     writer = RecordingWriter(partial, session, scene)
@@ -705,6 +710,7 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     collision = CollisionWorld(scene)
     summary = RunSummary(session.name, parts=[p.name for p in scene.parts], overrides=applied,
                          units=session.doc.get("units", "m"),
+                         masses_kg={p.name: p.mass_kg for p in scene.parts},
                          physics_changed=physics_changes(recording, scene.physics, applied),
                          warnings=_introduced(session, recording.session) if applied else [])
     writer = None

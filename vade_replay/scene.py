@@ -394,11 +394,23 @@ def _mass_properties(doc: dict, mesh: trimesh.Trimesh, length_factor: float,
             "mesh is not watertight, so its volume and inertia are undefined; give "
             "mass_properties (a CAD report or the numbers) for this part", file=file,
             field=f"{where}.shape")
+    if not mesh.is_winding_consistent:
+        # Watertight, but some faces wound the other way (face inward): the volume comes
+        # out as the difference of the two sides, a wrong mass without a word.
+        raise SessionError(
+            "the mesh's faces are not wound consistently (some face inward), so its volume, "
+            "mass and inertia would be wrong; fix its normals (trimesh.repair.fix_normals) "
+            "or give mass_properties for this part", file=file, field=f"{where}.shape")
     # What Trimesh.mass_properties calls, with the density given: the same numbers as a
     # copy of the mesh with its density set, without the copy (and its cache's hashing).
     mass = trimesh.triangles.mass_properties(triangles=mesh.triangles,
                                              crosses=mesh.triangles_cross,
                                              density=float(doc["density"]))
+    if float(mass.volume) < 0.0:
+        raise SessionError(
+            "the mesh's faces all point inward (its volume comes out negative): its normals "
+            "are inverted; flip them (trimesh: mesh.invert()) or export it again",
+            file=file, field=f"{where}.shape")
     props = MassProperties(float(mass.mass), _vec(mass.center_mass),
                            tuple(_vec(row) for row in mass.inertia))  # type: ignore[arg-type, union-attr]
     return check(props, file=file, field=f"{where}.density")

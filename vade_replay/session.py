@@ -116,6 +116,27 @@ def validate(doc: object, *, file: str) -> None:
 _METRES_LIKE = 3.0
 
 
+# Densities of solids a part is made of, kg/m^3: from foams (~30) to tungsten (19,300).
+_DENSITY_RANGE = (20.0, 25000.0)
+
+
+def _unlikely_densities(doc: dict) -> list[str]:
+    """A density outside any solid's: kg/mm^3 (7.85e-06 for steel) or g/cm^3 (7.85) for
+    kg/m^3, whatever the session's length unit."""
+    bodies = [("base", doc.get("base"))] + [
+        (f"parts[{i}]", part) for i, part in enumerate(doc.get("parts") or [])]
+    out = []
+    lo, hi = _DENSITY_RANGE
+    for where, body in bodies:
+        if isinstance(body, dict) and "density" in body:
+            rho = float(body["density"])
+            if not lo <= rho <= hi:
+                out.append(f"{where}.density: {rho:g} kg/m^3 is no solid's (steel is about "
+                           "7850, aluminium 2700, ABS 1050); densities are in kg/m^3 "
+                           "whatever the session's units")
+    return out
+
+
 def _shared_constraint_names(doc: dict) -> list[str]:
     """Two constraints of one part under one name: events, release misses and ``--set``
     name a constraint by its name, so they cannot tell the two apart."""
@@ -257,6 +278,7 @@ class Session:
                            f"({units}/s^2), so Earth's is {9.81 / UNIT_TO_M[units]:g}")
         out += _unknown_shape_keys(self.doc)
         out += _shared_constraint_names(self.doc)
+        out += _unlikely_densities(self.doc)
         tracker = self.doc["tracker"]
         if "csv" in tracker:
             gap = self._csv_sample_gap_s()
@@ -265,13 +287,22 @@ class Session:
                 out.append(f"tracker.csv_time_unit: the log's frames are {gap:.4g} s apart "
                            f"read as {unit}; a tracker samples every few ms: is the unit "
                            "right?")
-        reach = [max(abs(float(c)) for c in kf["position"])
-                 for frames in (tracker.get("devices") or {}).values() for kf in frames
-                 if "position" in kf]
+        reaches = {name: [max(abs(float(c)) for c in kf["position"]) for kf in frames
+                          if "position" in kf]
+                   for name, frames in sorted((tracker.get("devices") or {}).items())}
+        reach = [r for rs in reaches.values() for r in rs]
         if units != "m" and reach and max(reach) < _METRES_LIKE:
             out.append(f"tracker.devices: every keyframe position is under {_METRES_LIKE:g} "
                        f"{units} from the origin (at most {max(reach):g}): written in metres? "
                        f"they are read in the session's units ({units})")
+        elif units != "m":
+            # One device written in metres among the others in the session's unit.
+            for name, rs in reaches.items():
+                if rs and 0.0 < max(rs) < _METRES_LIKE:
+                    out.append(f"tracker.devices.{name}: every keyframe position is under "
+                               f"{_METRES_LIKE:g} {units} from the origin (at most "
+                               f"{max(rs):g}), unlike the other devices': written in metres? "
+                               f"they are read in the session's units ({units})")
         end = float(tracker.get("duration_s", 0.0))
         for name, frames in sorted((tracker.get("devices") or {}).items()):
             late = [kf["t"] for kf in frames if kf["t"] > end]
