@@ -286,3 +286,15 @@ def test_one_device_in_metres_and_unlikely_densities_are_warned_of():
     assert len(make_session(doc).warnings()) == 1
     doc["parts"][0]["density"] = 7850
     assert make_session(doc).warnings() == []
+
+
+def test_a_typo_of_a_base_or_environment_key_is_warned_of():
+    """``fixd`` for ``fixed`` left the base riding the hand without a word (their schema,
+    unlike a part's, lets them carry other keys): named, with the key it is close to."""
+    doc = json.loads((RECORDINGS / "shaft_placed.json").read_text())
+    assert make_session(doc).warnings() == []
+    doc["base"]["fixd"] = True
+    doc["environment"][0]["pos"] = {"position": [0, 0, 0]}
+    assert make_session(doc).warnings() == [
+        "base.fixd: not a field of the base, ignored (did you mean 'fixed'?)",
+        "environment[0].pos: not a field of the environment, ignored (did you mean 'pose'?)"]

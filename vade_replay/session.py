@@ -151,6 +151,27 @@ def _shared_constraint_names(doc: dict) -> list[str]:
     return out
 
 
+def _unknown_body_keys(doc: dict) -> list[str]:
+    """Keys of the base or an environment object that neither has (``fixd`` for ``fixed``:
+    the base then rode the hand without a word). Their schema, unlike a part's, lets them
+    carry others; making it strict would change its digest and refuse older recordings."""
+    import difflib
+    schema = load_schema("session.schema.json")
+    body = set(schema["$defs"]["body"]["properties"])
+    bodies = [("base", doc.get("base"), body | set(schema["properties"]["base"]["properties"]))]
+    bodies += [(f"environment[{i}]", item, body)
+               for i, item in enumerate(doc.get("environment") or [])]
+    out = []
+    for where, item, known in bodies:
+        if not isinstance(item, dict):
+            continue
+        for key in sorted(set(item) - known):
+            close = difflib.get_close_matches(key, sorted(known), n=1)
+            out.append(f"{where}.{key}: not a field of the {where.split('[')[0]}, ignored"
+                       + (f" (did you mean {close[0]!r}?)" if close else ""))
+    return out
+
+
 def _unknown_shape_keys(doc: dict) -> list[str]:
     """A shape's keys that no shape has (``sectons`` for ``sections``): the schema lets a
     shape carry others, so that a typo of an optional key would pass unnoticed."""
@@ -279,6 +300,7 @@ class Session:
         out += _unknown_shape_keys(self.doc)
         out += _shared_constraint_names(self.doc)
         out += _unlikely_densities(self.doc)
+        out += _unknown_body_keys(self.doc)
         tracker = self.doc["tracker"]
         if "csv" in tracker:
             gap = self._csv_sample_gap_s()
