@@ -294,3 +294,50 @@ def test_two_constraints_under_one_name_are_warned_of_and_a_what_if_of_it_refuse
     tolerances = [c.get("tolerance", {}).get("distance")
                   for c in changed.doc["parts"][0]["assembly"]["constraints"]]
     assert tolerances[0] == 0.01 and tolerances[1] != 0.01
+
+
+def test_a_final_pose_off_every_constraint_or_inside_the_base_and_a_floating_part_are_warned_of(
+        tmp_path):
+    """From an engineer's trial: a final pose lying across the pin (the part was then
+    snapped to it, given a loose final angle), one 5 mm into the block (the base stops the
+    part short, and it was never placed without a word), and a part resting 100 mm above
+    the table (it stays there: resting parts do not fall). vade-record names each; the
+    golden's own session has none of them."""
+    from conftest import run_cli
+    from vade_replay.collision import CollisionWorld
+    from vade_replay.replay import scene_warnings
+    doc = json.loads((RECORDINGS / "shaft_placed.json").read_text())
+
+    def warnings(d):
+        scene = session_mod.parse(json.dumps(d).encode(), {}, source="s.json").build_scene()
+        return scene_warnings(scene, CollisionWorld(scene))
+
+    assert warnings(doc) == []
+    final = doc["parts"][0]["assembly"]["final_pose"]
+    final["euler_deg"] = [90, 0, 0]
+    (across,) = warnings(doc)
+    assert across.startswith("parts[0].assembly.final_pose: on none of sleeve's constraints "
+                             "(nearest bore_on_shaft: ")
+    assert "90 deg off" in across
+    del final["euler_deg"]
+    final["position"] = [0, 0, 0.030]
+    (inside,) = warnings(doc)
+    assert inside.startswith("parts[0].assembly.final_pose: puts sleeve about 5 mm into the base "
+                             "(on bore_on_shaft)")
+    final["position"] = [0, 0, 0.0351]  # a tenth of a millimetre above its seat: no warning
+    assert warnings(doc) == []
+    constraint = doc["parts"][0]["assembly"]["constraints"][0]
+    constraint["part"]["point"] = [0.1, 0, 0]  # the axis beside the sleeve, not in its bore
+    beside, final_off = warnings(doc)  # and so the final pose is 100 mm off it too
+    assert final_off.startswith("parts[0].assembly.final_pose: on none")
+    assert beside.startswith("parts[0].assembly.constraints[0].part: no face of sleeve lies "
+                             "within bore_on_shaft's radius of its axis (the nearest vertex "
+                             "is 65 mm beyond it)")
+    constraint["part"]["point"] = [0, 0, 0]
+    doc["parts"][0]["pose"]["position"][2] += 0.1
+    (floating,) = warnings(doc)
+    assert floating.startswith("parts[0].pose: sleeve starts at least 100 mm from the table")
+    path = tmp_path / "floating.json"
+    path.write_text(json.dumps(doc))
+    result = run_cli("vade-record", str(path), "-o", str(tmp_path / "floating.mcap"))
+    assert result.returncode == 0 and "starts at least 100 mm from the table" in result.stderr

@@ -20,7 +20,7 @@ from typing import Callable, Iterable, Iterator
 from . import codec, native
 from . import constraints as cn
 from .analysis import SessionAnalysis, compare
-from .collision import CollisionWorld
+from .collision import SKIP_COAXIAL, SKIP_COPLANAR, CollisionWorld
 from .errors import ConfigError, RecordingError, SessionError, VadeError
 from .frames import FrameRecord, TrackerFrame
 from .modes import Cause, Mode
@@ -469,7 +469,8 @@ def record(session: Session, out: str | Path, *,
     scene = session.build_scene()
     collision = CollisionWorld(scene)
     summary = RunSummary(session.name, parts=[p.name for p in scene.parts],
-                         warnings=session.warnings(), units=session.doc.get("units", "m"),
+                         warnings=session.warnings() + scene_warnings(scene, collision),
+                         units=session.doc.get("units", "m"),
                          masses_kg={p.name: p.mass_kg for p in scene.parts})
     first_time = None
     frame = None
@@ -551,6 +552,120 @@ def release_misses(scene: Scene, record: FrameRecord, first_time_ns: int) -> lis
                     "off_distance_m": distance, "distance_tolerance_m": mate.distance_tolerance,
                     "off_angle_deg": math.degrees(angle),
                     "angle_tolerance_deg": math.degrees(mate.angle_tolerance)})
+    return out
+
+
+# A part resting at the start this far from anything under it is said to float (m).
+_FLOATING_M = 0.005
+# A final pose this far into the base (along its constraint) is said to be unreachable (m).
+_INSIDE_BASE_M = 0.001
+
+
+def _world_box(body, pose) -> tuple[list[float], list[float]]:
+    """A world box around the posed body: its own box's corners, posed (so never smaller)."""
+    lo, hi = body.bbox_min, body.bbox_max
+    world = [pose.apply((x, y, z)) for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+             for z in (lo[2], hi[2])]
+    return ([min(p[k] for p in world) for k in range(3)],
+            [max(p[k] for p in world) for k in range(3)])
+
+
+def _box_gap(a: tuple[list[float], list[float]], b: tuple[list[float], list[float]]) -> float:
+    """Distance between two axis-aligned boxes (0 when they overlap): a lower bound of the
+    distance between anything inside them."""
+    return math.sqrt(sum(max(0.0, b[0][k] - a[1][k], a[0][k] - b[1][k]) ** 2
+                         for k in range(3)))
+
+
+def _depth_into_base(collision: CollisionWorld, part: str, k: int, mate: cn.Mate,
+                     pose) -> float:
+    """How far the posed part must move along its constraint's axis (or off its plane) to
+    be clear of the base, to ~0.05 mm: 0 when it is already (touching is clear). fcl's
+    distance is 0 for any overlap, so the depth is found by moving it out, both ways along
+    an axis, until the distance opens, then halving."""
+    mode = SKIP_COAXIAL if mate.kind == "axis" else SKIP_COPLANAR
+    axis = mate.base_dirs[0]
+
+    def clear(s: float, sign: float) -> bool:
+        moved = Pose(tuple(p + sign * s * a for p, a in zip(pose.position, axis)), pose.rotation)
+        return collision.base_distance(part, k, moved, mode) > 0.0
+
+    if clear(0.0, 1.0) or collision.base_distance(part, k, pose, mode) == math.inf:
+        return 0.0
+    depths = []
+    for sign in ((1.0, -1.0) if mate.kind == "axis" else (1.0,)):
+        lo, hi = 0.0, 5e-4
+        while hi < 1.0 and not clear(hi, sign):
+            lo, hi = hi, 2.0 * hi
+        if hi >= 1.0:
+            continue
+        while hi - lo > 5e-5:
+            mid = 0.5 * (lo + hi)
+            lo, hi = (lo, mid) if clear(mid, sign) else (mid, hi)
+        depths.append(hi)
+    return min(depths, default=math.inf)
+
+
+def scene_warnings(scene: Scene, collision: CollisionWorld) -> list[str]:
+    """What the built scene shows that its document does not (``vade-record`` prints them
+    with the session's own warnings): a constraint's part side on no face of the part; a
+    final pose on none of the part's constraints, or
+    inside the base along the one it is on (never reached by sliding); a part resting at
+    the start in mid-air (resting parts do not fall until touched)."""
+    out = []
+    counters = dict(collision.stats)  # a run's counters count the run's own queries
+    for i, body in enumerate(scene.parts):
+        for k, mate in enumerate(body.assembly.mates if body.assembly else ()):
+            if len(mate.part_feature_faces) == 0:
+                # The base's side is refused so (scene.py); a part's bore may be a little
+                # wider than the shaft's radius, so its side is only warned of.
+                where = f"parts[{i}].assembly.constraints[{k}].part"
+                if mate.kind == "axis":
+                    gap = float(cn._axis_distance(body.vertices, mate.part_points[0],
+                                                  mate.part_dirs[0]).min()) - mate.radius
+                    out.append(f"{where}: no face of {body.name} lies within {mate.name}'s "
+                               f"radius of its axis (the nearest vertex is {gap * 1e3:.3g} "
+                               "mm beyond it): check point, direction and radius")
+                else:
+                    out.append(f"{where}: no face of {body.name} lies in {mate.name}'s "
+                               "plane, facing out along its normal: check point and normal")
+        assembly = body.assembly
+        if assembly is None or assembly.final_pose is None or not assembly.mates:
+            continue
+        final = assembly.final_pose
+        offs = []
+        for k, mate in enumerate(assembly.mates):
+            angle, distance = cn.misalignment(mate, final)
+            offs.append((max(_over(distance, mate.distance_tolerance),
+                             _over(angle, mate.angle_tolerance)), k, angle, distance))
+        worst, k, angle, distance = min(offs)
+        mate = assembly.mates[k]
+        if worst > 1.0:
+            out.append(f"parts[{i}].assembly.final_pose: on none of {body.name}'s constraints "
+                       f"(nearest {mate.name}: {distance * 1e3:.3g} mm and "
+                       f"{math.degrees(angle):.3g} deg off; tolerances "
+                       f"{mate.distance_tolerance * 1e3:.3g} mm, "
+                       f"{math.degrees(mate.angle_tolerance):.3g} deg): the part cannot slide "
+                       "or turn into it, and reaches it only if let go there")
+            continue
+        snapped = cn.recognise(mate, final) or final
+        depth = _depth_into_base(collision, body.name, k, mate, snapped)
+        if depth > _INSIDE_BASE_M:
+            out.append(f"parts[{i}].assembly.final_pose: puts {body.name} about {depth * 1e3:.2g} mm "
+                       f"into the base (on {mate.name}): the base stops it short of the pose, "
+                       "which it then reaches only within final_tolerance")
+    below = [_world_box(b, b.initial_pose) for b in scene.environment]
+    if scene.base is not None and scene.base_fixed:
+        below.append(_world_box(scene.base, scene.base.initial_pose))
+    for i, body in enumerate(scene.parts):
+        if body.initial_mode is not Mode.STATIC or not below:
+            continue
+        gap = min(_box_gap(_world_box(body, body.initial_pose), box) for box in below)
+        if gap > _FLOATING_M:
+            out.append(f"parts[{i}].pose: {body.name} starts at least {gap * 1e3:.3g} mm from "
+                       "the table and every other object, and stays there until a hand "
+                       "touches it: resting parts do not fall")
+    collision.stats.update(counters)
     return out
 
 
