@@ -137,3 +137,29 @@ def test_a_closed_mesh_wound_wrongly_is_refused_not_given_a_wrong_mass(flip, nee
     scene = make_session(doc, {"p.stl": box.export(file_type="stl")}).build_scene()
     # (STL holds float32 vertices: the volume to ~1e-7.)
     assert scene.parts[0].mass_kg == pytest.approx(2700 * 0.1 * 0.05 * 0.02, rel=1e-6)
+
+
+def test_unit_and_base_mass_errors_say_what_to_change():
+    """A mesh file whose size says it is in another unit points at the shape's own
+    ``units``; an open base mesh with a density says its mass is not used (leaving the
+    density out was the way, and no message said so)."""
+    box = trimesh.creation.box(extents=[0.06, 0.04, 0.02])  # metres: 0.06 mm read as mm
+    stl = box.export(file_type="stl")
+    part = {"name": "p", "shape": {"type": "mesh", "file": "p.stl"}, "density": 2700,
+            "pose": {"position": [0, 0, 1000.0]}}
+    doc = {"format": "vade-session/1", "name": "t", "units": "mm", "parts": [part],
+           "tracker": {"duration_s": 0.1, "devices": {"right_hand": [{"t": 0}]}}}
+    with pytest.raises(SessionError) as info:
+        make_session(doc, {"p.stl": stl}).build_scene()
+    assert "mm across" in str(info.value) and "shape's \"units\"" in str(info.value)
+    part["shape"]["units"] = "m"
+    assert make_session(doc, {"p.stl": stl}).build_scene().parts[0].mass_kg > 0
+    open_mesh = trimesh.creation.box(extents=[100, 50, 20])
+    open_mesh.update_faces(np.arange(len(open_mesh.faces)) != 0)
+    doc["base"] = {"name": "b", "shape": {"type": "mesh", "file": "b.stl"}, "density": 2700}
+    files = {"p.stl": stl, "b.stl": open_mesh.export(file_type="stl")}
+    with pytest.raises(SessionError) as info:
+        make_session(doc, files).build_scene()
+    assert "leave out the base's density" in str(info.value)
+    del doc["base"]["density"]
+    assert make_session(doc, files).build_scene().base is not None

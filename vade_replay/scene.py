@@ -392,8 +392,9 @@ def _mass_properties(doc: dict, mesh: trimesh.Trimesh, length_factor: float,
     if not mesh.is_watertight:
         raise SessionError(
             "mesh is not watertight, so its volume and inertia are undefined; give "
-            "mass_properties (a CAD report or the numbers) for this part", file=file,
-            field=f"{where}.shape")
+            "mass_properties (a CAD report or the numbers) for this part"
+            + ("; or leave out the base's density: its mass is not used" if where == "base"
+               else ""), file=file, field=f"{where}.shape")
     if not mesh.is_winding_consistent:
         # Watertight, but some faces wound the other way (face inward): the volume comes
         # out as the difference of the two sides, a wrong mass without a word.
@@ -464,8 +465,11 @@ def _geometry(doc: dict, length_factor: float, files: dict[str, bytes], *, where
     if size < _MIN_SIZE_M:
         # Nothing a hand assembles is this small: lengths in metres in a mm file, most likely
         # (and trimesh's mass properties of it are round-off).
+        from_file = '"file"' in json.dumps(doc["shape"])
         raise SessionError(f"it is {size * 1e3:.3g} mm across: are the session's units "
-                           f"right? (lengths are in its units, {_UNIT_NAMES.get(length_factor, '')})",
+                           f"right? (lengths are in its units, {_UNIT_NAMES.get(length_factor, '')}"
+                           + ("; a mesh file in another unit names it in the shape's "
+                              '"units"' if from_file else "") + ")",
                            file=file, field=f"{where}.shape")
     if needs_mass:
         props = _mass_properties(doc, mesh, length_factor, files, where=where, file=file)
