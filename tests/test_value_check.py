@@ -208,3 +208,37 @@ def test_a_one_ulp_change_in_a_recording_is_named_where_it_is(tmp_path: Path):
     found = summary.first_divergence
     assert found["frame"] == target and found["channel"] == codec.FOXGLOVE_TOPIC
     assert found["field"] == "translation.z"
+
+
+@pytest.mark.parametrize("parts", ENCODINGS)
+def test_a_frame_listing_many_parts_is_checked_by_its_bytes_with_the_same_verdicts(parts):
+    """``check`` parses a frame listing few parts and writes one listing many (a key frame
+    of many resting parts: their text is kept); both ways the verdicts are the byte
+    comparison's, the messages it returns on a difference are ``derived_messages``', and
+    the encoder stays in step through either."""
+    from vade_replay.events import ModeChanged
+    from vade_replay.frames import FrameRecord, PartSnapshot, TrackerFrame
+
+    rest = [PartSnapshot(f"r{i:02d}", "STATIC", (0.1 * i, 0.0, 0.75), (0.0, 0.0, 0.0, 1.0),
+                         (0.0,) * 3, (0.0,) * 3) for i in range(20)]
+    frames = []
+    for k in range(150):  # across two key frames of the changed encoding
+        mover = PartSnapshot("m", "INSPACE", (0.0, 0.0, 1.0 - 1e-3 * k),
+                             (0.0, 0.0, 0.0, 1.0), (0.0, 0.0, -0.01 * k), (0.0,) * 3)
+        events = (ModeChanged(k, "m", "x", "INHAND", "INSPACE"),) if k % 50 == 7 else ()
+        frames.append(FrameRecord(TrackerFrame(k, k * 16_666_667, ()), None,
+                                  (mover, *rest), events))
+    reference, checker = codec.FrameEncoder(parts), codec.FrameEncoder(parts)
+    shown = []
+    for k, record in enumerate(frames):
+        written = reference.derived_messages(record)
+        shown.append(len(json.loads(written[1][1])["transforms"]))
+        if k % 3 == 1:  # a one-ulp change of the first number in the transforms
+            doc = json.loads(written[1][1])
+            x = doc["transforms"][0]["translation"]["x"]
+            doc["transforms"][0]["translation"]["x"] = float(np.nextafter(x, math.inf))
+            changed = [written[0], (written[1][0], _dumps(doc)), *written[2:]]
+            assert checker.check(record, changed) == written
+        else:
+            assert checker.check(record, written) is None
+    assert max(shown) == 21 and (parts == codec.PARTS_FULL or min(shown) == 1)

@@ -715,13 +715,13 @@ def replay_frames(recording: Recording, scene: Scene, *, check: bool = True,
     previous = None
     for recorded in recording.frames():
         replayed = advance(recorded.inputs)
-        if check and encoder.matches(replayed, recorded.derived):
-            derived, divergence = recorded.derived, None  # the same values (``replay``)
+        if check:
+            ours = encoder.check(replayed, recorded.derived)  # as ``replay`` checks
+            derived = recorded.derived if ours is None else ours
+            divergence = None if ours is None else _divergence(
+                recorded.inputs, recorded.derived, derived, replayed, previous)
         else:
-            derived = encoder.derived_messages(replayed)
-            divergence = None if not check or recorded.derived == derived \
-                else _divergence(recorded.inputs, recorded.derived, derived, replayed,
-                                 previous)
+            derived, divergence = encoder.derived_messages(replayed), None
         previous = replayed
         yield ReplayFrame(recorded, replayed, derived, divergence)
 
@@ -855,14 +855,17 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
             # only for an on_frame: ~2 us a frame less (vade-bench --replay).
             for recorded in recording.frames():
                 replayed = advance(recorded.inputs)
-                if writer is None and encoder.matches(replayed, recorded.derived):
-                    # The same values, checked without writing ours (``matches``).
-                    derived, divergence = recorded.derived, None
+                if writer is None:
+                    # The check by value, or by bytes where a frame lists many parts
+                    # (``FrameEncoder.check``); ours are written only where they differ.
+                    ours = encoder.check(replayed, recorded.derived)
+                    derived = recorded.derived if ours is None else ours
                 else:
                     derived = encoder.derived_messages(replayed)
-                    divergence = None if recorded.derived == derived \
-                        else _divergence(recorded.inputs, recorded.derived, derived,
-                                         replayed, previous)
+                    ours = None if recorded.derived == derived else derived
+                divergence = None if ours is None \
+                    else _divergence(recorded.inputs, recorded.derived, derived, replayed,
+                                     previous)
                 previous = replayed
                 if first_time is None:
                     first_time = replayed.time_ns
