@@ -341,3 +341,37 @@ def test_a_final_pose_off_every_constraint_or_inside_the_base_and_a_floating_par
     path.write_text(json.dumps(doc))
     result = run_cli("vade-record", str(path), "-o", str(tmp_path / "floating.mcap"))
     assert result.returncode == 0 and "starts at least 100 mm from the table" in result.stderr
+
+
+def test_a_what_if_length_may_carry_its_unit_and_means_one_length_in_any_session():
+    """A study mixes sessions in mm and in m: ``--set physics.grab_radius=15`` is 15 mm in
+    one and 15 m in the other; ``15mm`` is 15 mm in both, written in each session's unit.
+    A unit on what is not a length is refused, naming the key."""
+    from test_session import _scaled
+
+    from vade_replay.errors import ConfigError
+    from vade_replay.replay import apply_overrides
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+    metres = session_mod.parse(json.dumps(doc).encode(), {}, source="m.json")
+    mm_doc = _scaled(doc, 1000.0)
+    mm_doc["units"] = "mm"
+    mm_doc["physics"] = {"gravity": [0.0, 0.0, -9800.0]}
+    millimetres = session_mod.parse(json.dumps(mm_doc).encode(), {}, source="mm.json")
+    for session, per_m in ((metres, 1.0), (millimetres, 1000.0)):
+        changed, applied = apply_overrides(session, {"physics.grab_radius": "15mm",
+                                                     "physics.contact_tolerance": "0.004 in"})
+        assert changed.doc["physics"]["grab_radius"] == pytest.approx(0.015 * per_m, rel=1e-15)
+        assert applied["physics.contact_tolerance"] == pytest.approx(1.016e-4 * per_m,
+                                                                     rel=1e-15)
+        physics = changed.build_scene().physics
+        assert (physics.grab_radius, physics.contact_tolerance) == pytest.approx(
+            (0.015, 1.016e-4), rel=1e-15)
+    _, applied = apply_overrides(metres, {"physics.grab_radius": "0.015m"})
+    assert applied == {"physics.grab_radius": 0.015}
+    shaft = session_mod.parse((RECORDINGS / "shaft_placed.json").read_bytes(), {},
+                              source="shaft_placed.json")
+    key = "parts.sleeve.constraints.bore_on_shaft.tolerance.distance"
+    _, applied = apply_overrides(shaft, {key: "10mm"})
+    assert applied == {key: pytest.approx(0.01, rel=1e-15)}
+    with pytest.raises(ConfigError, match="has a length unit, and this is not a length"):
+        apply_overrides(metres, {"physics.friction_static": "3mm"})

@@ -298,3 +298,12 @@ def test_a_typo_of_a_base_or_environment_key_is_warned_of():
     assert make_session(doc).warnings() == [
         "base.fixd: not a field of the base, ignored (did you mean 'fixed'?)",
         "environment[0].pos: not a field of the environment, ignored (did you mean 'pose'?)"]
+
+
+def test_a_metre_session_read_as_mm_is_named_even_where_its_meshes_collapse():
+    """The sleeve, a tube 0.05 mm across once read as mm, merges to no vertices at all
+    (trimesh), which gave a TypeError from its missing extents: the units error instead."""
+    doc = json.loads((RECORDINGS / "shaft_placed.json").read_text())
+    doc["units"] = "mm"
+    with pytest.raises(SessionError, match="mm across: are the session's units right"):
+        make_session(doc).build_scene()

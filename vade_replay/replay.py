@@ -13,6 +13,7 @@ from __future__ import annotations
 import copy
 import json
 import math
+import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Iterable, Iterator
@@ -26,7 +27,7 @@ from .frames import FrameRecord, TrackerFrame
 from .modes import Cause, Mode
 from .recording import (RecordedFrame, Recording, RecordingWriter, complete_output,
                         partial_output, physics_metadata)
-from .scene import LENGTH_FIELDS, PAPER_DEFAULTS, Physics, Scene
+from .scene import LENGTH_FIELDS, PAPER_DEFAULTS, UNIT_TO_M, Physics, Scene
 from .session import Session, parse, strict_json
 from .spatial import Pose
 from .step import Stepper
@@ -404,6 +405,27 @@ def _constraint_target(doc: dict, key: str) -> dict:
     return constraints[names.index(wanted)].setdefault(leaf.split(".")[0], {})
 
 
+_WITH_UNIT = re.compile(r"\s*(-?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(m|mm|in)\s*")
+
+
+def _is_length(key: str) -> bool:
+    """A ``--set`` key whose value is a length (in the session's units unless it says)."""
+    field = key.rpartition(".")[2]
+    return field in LENGTH_FIELDS or key.endswith("tolerance.distance")
+
+
+def _in_session_units(key: str, text: str, units: str) -> str:
+    """``15mm``, ``0.6 in``, ``0.015m``: a length in its own unit, as the session's unit
+    writes it (a study's --set then means one length in sessions of mm and of metres)."""
+    match = _WITH_UNIT.fullmatch(text)
+    if match is None:
+        return text
+    if not _is_length(key):
+        raise ConfigError(f"{text!r} has a length unit, and this is not a length", field=key)
+    number, unit = match.groups()
+    return repr(float(number) * UNIT_TO_M[unit] / UNIT_TO_M[units])
+
+
 def apply_overrides(session: Session, overrides: dict[str, str]) -> tuple[Session, dict]:
     """The session as if its ``physics`` block said ``NAME: VALUE`` for each override
     ``physics.NAME``, its tool ``TOOL`` said ``FIELD: VALUE`` for each ``tools.TOOL.FIELD``
@@ -412,7 +434,8 @@ def apply_overrides(session: Session, overrides: dict[str, str]) -> tuple[Sessio
     and the like (would a looser fit have been recognised?).
 
     Values are JSON (numbers, strings, lists) in the session's own units, exactly as they
-    would be written in the session file; the changed document is validated against the
+    would be written in the session file, or a length with its unit (``15mm``, ``0.6in``,
+    ``0.015m``), converted to the session's; the changed document is validated against the
     session schema and the scene is built from it, so what depends on physics follows the
     change: ``model`` brings that model's own schemes (the session's explicit choices of
     them are dropped unless also overridden), and a friction override applies to every
@@ -427,6 +450,7 @@ def apply_overrides(session: Session, overrides: dict[str, str]) -> tuple[Sessio
     for key, text in sorted(overrides.items(), key=lambda kv: (kv[0].startswith("parts."),
                                                              kv[0])):
         target = _override_target(doc, physics, key)
+        text = _in_session_units(key, text, doc.get("units", "m"))
         try:
             value = strict_json(text)
         except json.JSONDecodeError:

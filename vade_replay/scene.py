@@ -461,7 +461,9 @@ _UNIT_NAMES = {factor: name for name, factor in UNIT_TO_M.items()}
 def _geometry(doc: dict, length_factor: float, files: dict[str, bytes], *, where: str,
               file: str, needs_mass: bool):
     mesh = _mesh_from_shape(doc["shape"], length_factor, files, where=where, file=file)
-    size = float(np.max(mesh.extents)) if len(mesh.vertices) else 0.0
+    # (A mesh whose vertices all merged, a shape in metres read as mm, has no extents.)
+    extents = mesh.extents if len(mesh.vertices) else None
+    size = float(np.max(extents)) if extents is not None else 0.0
     if size < _MIN_SIZE_M:
         # Nothing a hand assembles is this small: lengths in metres in a mm file, most likely
         # (and trimesh's mass properties of it are round-off).
