@@ -14,18 +14,85 @@ from pathlib import Path
 from vade_replay import session as session_mod
 from vade_replay.errors import ConfigError, VadeError
 from vade_replay.recording import Recording
-from vade_replay.replay import record, replay
+from vade_replay.replay import _first_difference, record, replay
 
 from ._common import EXIT_DIVERGED, EXIT_OK, EXIT_UNUSABLE, run
+
+try:
+    import fcntl
+except ImportError:  # not on Windows: two runs at once are not kept apart there
+    fcntl = None  # type: ignore[assignment]
+
+LOCK_NAME = ".vade-goldens.lock"
 
 
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="vade-goldens", description=__doc__.splitlines()[0])
     p.add_argument("--dir", default="recordings", help="folder of sessions (default recordings)")
     p.add_argument("--check", action="store_true",
-                   help="replay every golden instead of rewriting; exit 1 if any diverges")
+                   help="replay every golden instead of rewriting it, and compare its session "
+                        "with the session file; exit 1 if any diverges or is stale, 2 if any "
+                        "cannot be replayed (missing, damaged, cut short)")
     p.add_argument("names", nargs="*", help="only these sessions (default: all)")
     return p
+
+
+def stale(session: session_mod.Session, recording: Recording) -> str | None:
+    """How a session file (and the files it names) differs from the session a golden was
+    recorded from, or None: text that reads as the same values is the same session."""
+    recorded = recording.session
+    if session.doc != recorded.doc:
+        found = _first_difference(recorded.doc, session.doc)
+        if found is not None:
+            path, was, now = found
+            return f"field {path or '(the whole file)'}: {was!r} in the golden, {now!r} now"
+    for name in sorted(set(session.files) | set(recorded.files)):
+        if session.files.get(name) != recorded.files.get(name):
+            return f"file {name} is not the one the golden was made with"
+    return None
+
+
+def _check(path: Path, golden: Path) -> tuple[str, str]:
+    """``(outcome, line)``: match, diverged, stale or unusable."""
+    session = session_mod.load(path)  # a bad session file: unusable, named
+    recording = Recording(golden)
+    changed = stale(session, recording)
+    if changed is not None:
+        return "stale", (f"STALE: {path} changed since its golden was made ({changed}); "
+                         f"regenerate it with vade-goldens --dir {path.parent} {path.stem}")
+    summary = replay(recording)
+    if summary.truncated:
+        raise VadeError(f"cut short (a crash while it was written): it holds {summary.frames} "
+                        f"frames of its session; regenerate it with vade-goldens --dir "
+                        f"{path.parent} {path.stem}", file=str(golden))
+    if summary.match:
+        return "match", "match"
+    status = f"DIVERGED {summary.first_divergence['text']}"
+    if summary.physics_changed:
+        status += (f" (recorded with other physics defaults: "
+                   f"{', '.join(summary.physics_changed)}; vade-replay {golden} --as-recorded "
+                   "replays it with them; if the change is meant, re-record with vade-goldens)")
+    return "diverged", status
+
+
+def _lock(folder: Path):
+    """One regeneration of a folder at a time: a second run would write the same
+    ``NAME.mcap.partial`` files and rename them from under the first."""
+    if fcntl is None:
+        return None
+    path = folder / LOCK_NAME
+    try:
+        stream = open(path, "a")
+    except OSError as exc:
+        raise ConfigError(f"cannot write here ({exc.strerror or exc})", file=str(folder),
+                          field="--dir") from None
+    try:
+        fcntl.flock(stream.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        stream.close()
+        raise ConfigError("another vade-goldens is regenerating this folder now; wait for "
+                          f"it to finish ({LOCK_NAME} is locked)", file=str(folder)) from None
+    return stream
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -42,31 +109,57 @@ def main(argv: list[str] | None = None) -> int:
                           f"{', '.join(s.stem for s in sessions)})", file=str(folder))
     if args.names:
         sessions = [s for s in sessions if s.stem in args.names]
-    failed = unusable = 0
+    if not args.check:
+        return _regenerate(folder, sessions)
+    counts = {"match": 0, "diverged": 0, "stale": 0, "unusable": 0}
     for path in sessions:
         golden = path.with_suffix(".mcap")
-        if args.check:
+        try:
+            outcome, line = _check(path, golden)
+        except VadeError as exc:
+            # One golden (or its session) missing, damaged or cut short: named, and the
+            # others still checked.
+            hint = (f" (record it with vade-goldens --dir {folder} {path.stem})"
+                    if not golden.exists() and exc.file == str(golden) else "")
+            print(f"error: {exc.describe()}{hint}", file=sys.stderr)
+            counts["unusable"] += 1
+            continue
+        counts[outcome] += 1
+        print(f"{golden}: {line}")
+    if len(sessions) > 1:
+        print(f"{len(sessions)} goldens: {counts['match']} match, {counts['diverged']} "
+              f"diverged, {counts['stale']} stale, {counts['unusable']} could not be replayed")
+    return EXIT_UNUSABLE if counts["unusable"] else \
+        EXIT_DIVERGED if counts["diverged"] or counts["stale"] else EXIT_OK
+
+
+def _regenerate(folder: Path, sessions: list[Path]) -> int:
+    """Every session read and its scene built before any golden is written: a bad one
+    stops the run with the goldens as they were, not half of them remade."""
+    lock = _lock(folder)
+    try:
+        loaded = []
+        bad = 0
+        for path in sessions:
             try:
-                summary = replay(Recording(golden))
+                session = session_mod.load(path)
+                session.build_scene()
+                loaded.append((path, session))
             except VadeError as exc:
-                # One golden missing or damaged: named, and the others still checked.
                 print(f"error: {exc.describe()}", file=sys.stderr)
-                unusable += 1
-                continue
-            status = "match" if summary.match else f"DIVERGED {summary.first_divergence['text']}"
-            if not summary.match and summary.physics_changed:
-                status += (f" (recorded with other physics defaults: "
-                           f"{', '.join(summary.physics_changed)}; if that change is meant, "
-                           "re-record with vade-goldens)")
-            failed += not summary.match
-        else:
-            summary = record(session_mod.load(path), golden)
-            status = f"{summary.frames} frames, {summary.transitions} transitions"
-        print(f"{golden}: {status}")
-    if args.check and len(sessions) > 1:
-        print(f"{len(sessions)} goldens: {len(sessions) - failed - unusable} match, {failed} "
-              f"diverged, {unusable} could not be replayed")
-    return EXIT_UNUSABLE if unusable else EXIT_DIVERGED if failed else EXIT_OK
+                bad += 1
+        if bad:
+            print(f"{bad} session{'s' if bad > 1 else ''} cannot be recorded: no golden was "
+                  "written", file=sys.stderr)
+            return EXIT_UNUSABLE
+        for path, session in loaded:
+            golden = path.with_suffix(".mcap")
+            summary = record(session, golden)
+            print(f"{golden}: {summary.frames} frames, {summary.transitions} transitions")
+        return EXIT_OK
+    finally:
+        if lock is not None:
+            lock.close()
 
 
 def entry() -> None:

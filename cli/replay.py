@@ -40,6 +40,10 @@ def _parser() -> argparse.ArgumentParser:
                         "tools.TOOL.FIELD=VALUE, parts.PART.constraints.NAME.FIELD=VALUE "
                         "(tolerance.distance, friction.static, ...), parts.PART.density=VALUE "
                         "(repeatable; JSON value in the session's units)")
+    p.add_argument("--as-recorded", action="store_true",
+                   help="replay with the physics defaults each recording was made with "
+                        "(from its metadata), not this version's, where its session leaves "
+                        "them to the default: does an older recording still reproduce?")
     p.add_argument("--csv", metavar="OUT.csv",
                    help="write the analysis as a table: a row per recording and part (seconds in "
                         "each state, grabs, drops, ..., placed at), for a study's sessions")
@@ -73,6 +77,9 @@ def main(argv: list[str] | None = None) -> int:
     # Files and options in any order (a study's files after --csv OUT.csv, say).
     args = _parser().parse_intermixed_args(argv)
     overrides = _overrides(args.set)
+    if args.as_recorded and overrides:
+        raise ConfigError("--as-recorded replays a recording with the physics it was made "
+                          "with; a what-if (--set) is a replay of its own", field="--set")
     if args.spawn and not args.rerun:
         raise ConfigError("--spawn opens the review: give --rerun OUT.rrd too", field="--spawn")
     if args.jobs < 0:
@@ -171,8 +178,8 @@ def _write_table(table: TableFile, summaries: list[dict]) -> None:
         raise table.error(exc) from None
 
 
-def _replay_one(path: str, overrides: dict[str, str],
-                tables: dict[str, tuple[str, str]]) -> tuple[str, object]:
+def _replay_one(path: str, overrides: dict[str, str], tables: dict[str, tuple[str, str]],
+                as_recorded: bool = False) -> tuple[str, object]:
     """One recording of several, in a worker process of ``--jobs``: ``("summary", its
     summary as --json prints it)``, ``("error", why it is unusable)``, or ``("table",
     (message, option))`` when a table could not be written (which ends the run). Its frame
@@ -181,7 +188,7 @@ def _replay_one(path: str, overrides: dict[str, str],
     try:
         for kind, (file, option) in tables.items():
             streams[kind] = (open(file, "w", newline="", encoding="utf-8"), option, file)
-        return _replay_rows(path, overrides, streams)
+        return _replay_rows(path, overrides, streams, as_recorded)
     except OSError as exc:
         return "table", (f"cannot write a temporary table ({exc.strerror or exc})",
                          next(iter(tables.values()))[1])
@@ -191,12 +198,13 @@ def _replay_one(path: str, overrides: dict[str, str],
 
 
 def _replay_rows(path: str, overrides: dict[str, str],
-                 streams: dict[str, tuple[TextIO, str, str]]) -> tuple[str, object]:
+                 streams: dict[str, tuple[TextIO, str, str]],
+                 as_recorded: bool = False) -> tuple[str, object]:
     """Replay one recording of several, its frame table rows to ``streams``."""
     try:
         frame_tables = FrameTables(path, streams, header=False) if streams else None
         return "summary", replay(Recording(path), overrides=overrides,
-                                 on_frame=frame_tables).to_dict()
+                                 on_frame=frame_tables, as_recorded=as_recorded).to_dict()
     except TableError as exc:
         if isinstance(exc.__context__, BrokenPipeError) and closed_pipe(sys.stdout):
             raise  # standard output closed by its reader: the run stops (run())
@@ -229,7 +237,7 @@ def _results_here(args, overrides: dict[str, str],
                 marks[kind] = table.stream.tell() if table.seekable else None
             except OSError as exc:
                 raise table.error(exc) from None
-        result = _replay_rows(path, overrides, streams)
+        result = _replay_rows(path, overrides, streams, args.as_recorded)
         if result[0] == "error":
             for kind, table in tables.items():
                 if marks[kind] is not None:
@@ -278,8 +286,9 @@ def _results_in_workers(args, overrides: dict[str, str], outputs: dict[str, Tabl
         pool = ProcessPoolExecutor(max_workers=min(jobs, len(args.recordings)),
                                    initializer=_quiet_on_interrupt)
         try:
-            for result, parts in zip(pool.map(_replay_one, args.recordings,
-                                              [overrides] * len(args.recordings), tables),
+            n = len(args.recordings)
+            for result, parts in zip(pool.map(_replay_one, args.recordings, [overrides] * n,
+                                              tables, [args.as_recorded] * n),
                                      tables):
                 if result[0] == "summary":
                     for kind, (file, _) in parts.items():
@@ -353,7 +362,8 @@ def _one_of_many(args, overrides: dict[str, str], path: str, result: tuple[str, 
     _warn(path, summary)
     if not args.json:
         cut = " (cut short)" if summary.truncated else ""
-        print(f"{path}: {_verdict(summary, overrides, short=True)}{cut}", file=_lines)
+        print(f"{path}: {_verdict(summary, overrides, short=True, path=path)}{cut}",
+              file=_lines)
     return EXIT_OK if summary.match or overrides else EXIT_DIVERGED
 
 
@@ -366,7 +376,8 @@ def _warn(path: str, summary) -> None:
         print(f"warning: {path}: what-if: {warning}", file=sys.stderr)
 
 
-def _verdict(summary, overrides: dict[str, str], *, short: bool = False) -> str:
+def _verdict(summary, overrides: dict[str, str], *, short: bool = False,
+             path: str = "FILE") -> str:
     """The one-line result; a what-if says so, since departing is what it is for."""
     if summary.match:
         text = "match" if short else (
@@ -375,37 +386,46 @@ def _verdict(summary, overrides: dict[str, str], *, short: bool = False) -> str:
     else:
         text = f"DIVERGED{'' if short else ':'} {summary.first_divergence['text']}"
         if summary.physics_changed:
-            text += (f" (made with other physics defaults: {', '.join(summary.physics_changed)})"
-                     if short else "\n" + _physics_note(summary.physics_changed))
+            text += (f" (made with other physics defaults: {', '.join(summary.physics_changed)};"
+                     f" vade-replay {path} --as-recorded replays it with them)" if short
+                     else "\n" + _physics_note(summary.physics_changed, path))
     if overrides:
         changes = ", ".join(f"{k}={v}" for k, v in sorted(overrides.items()))
         text = f"what-if ({changes}): " + (
             "the recording is unchanged, " + text if summary.match
             else "departs from the recording: " + summary.first_divergence["text"])
         if summary.physics_changed and not summary.match and not short:
-            text += "\n" + _physics_note(summary.physics_changed)
+            text += "\n" + _physics_note(summary.physics_changed, path, what_if=True)
         changes = getattr(summary, "analysis_changes", None)
         if changes is not None and not short:
             text += ("\nanalysis: " + "; ".join(changes)) if changes \
                 else "\nanalysis: unchanged"
+    restored = getattr(summary, "as_recorded", None)
+    if restored is not None:
+        listed = ", ".join(f"{name}={value!r}" for name, value in restored.items())
+        text = f"as recorded ({listed or 'no default changed since it was made'}): {text}"
     if not short:
         for miss in getattr(summary, "release_misses", []):
             text += f"\nnot on a constraint: {describe_miss(miss)}"
     return text
 
 
-def _physics_note(changes: dict) -> str:
-    """Why a recording made by an older version may diverge: a default changed since."""
+def _physics_note(changes: dict, path: str, *, what_if: bool = False) -> str:
+    """Why a recording made by an older version may diverge: a default changed since; and
+    how to replay it as it was made (``--as-recorded``: the recorded values as defaults, so
+    a constraint's own friction stands, where ``--set physics.friction_*`` replaces it)."""
     listed = "; ".join(f"{name} {change['recorded']!r} then, {change['now']!r} now"
                        for name, change in changes.items())
-    options, left_out = as_recorded(changes)
     text = f"note: this recording was made with other physics defaults ({listed})"
-    if options:
-        text += f"; to replay it as it was made: vade-replay FILE {options}"
-    if left_out:
-        text += (f" ({', '.join(left_out)} not included: give "
-                 + ("them" if len(left_out) > 1 else "it") + " in the session's units)")
-    return text
+    if what_if:
+        options, left_out = as_recorded(changes)
+        if options:
+            text += f"; to add them to this what-if: {options}"
+        if left_out:
+            text += (f" ({', '.join(left_out)} not included: give "
+                     + ("them" if len(left_out) > 1 else "it") + " in the session's units)")
+        return text
+    return text + f"; to replay it as it was made: vade-replay {path} --as-recorded"
 
 
 def _one(args, path: str, overrides: dict[str, str], outputs: dict[str, TableFile]) -> int:
@@ -419,13 +439,15 @@ def _one(args, path: str, overrides: dict[str, str], outputs: dict[str, TableFil
         progress.update()
         tables(item)
 
-    summary = replay(recording, overrides=overrides, out=args.output, on_frame=on_frame)
+    summary = replay(recording, overrides=overrides, out=args.output, on_frame=on_frame,
+                     as_recorded=args.as_recorded)
     progress.close()
     _warn(path, summary)
     if args.json:
         print_json(summary.to_dict())
     else:
-        print(_verdict(SimpleNamespace(**summary.to_dict()), overrides), file=_lines)
+        print(_verdict(SimpleNamespace(**summary.to_dict()), overrides, path=path),
+              file=_lines)
     if "--csv" in outputs:
         _write_table(outputs["--csv"], [{**summary.to_dict(), "recording": path}])
     if args.rerun:

@@ -124,3 +124,71 @@ def test_signed_zero_is_a_difference_and_spacing_is_not(tmp_path: Path):
     found = _divergence(inputs, [("/parts", b'{"x": 1.0}'), ("/parts", b'{"x":3}')],
                         [("/parts", b'{"x":1.0}'), ("/parts", b'{"x":3.0}')])
     assert found is not None and found.field == "x" and (found.recorded, found.replayed) == (3, 3.0)
+
+
+def test_goldens_check_finds_a_stale_session_and_a_cut_golden_and_remakes_all_or_none(tmp_path):
+    """From a developer's trial: a session file edited after its golden was made checked
+    as ``match`` (the check replays the session inside the golden); a golden cut short
+    replayed its first frames and said ``match``; one bad session stopped a regeneration
+    half way, the goldens a mix of old and new. Now: stale (exit 1, naming the field), cut
+    short (exit 2), and a regeneration with a bad session writes no golden at all."""
+    import shutil
+
+    from conftest import run_cli
+    for name in ("plane_block_wall", "gear_pendulum"):
+        for suffix in (".json", ".mcap"):
+            shutil.copy(RECORDINGS / f"{name}{suffix}", tmp_path / f"{name}{suffix}")
+    assert run_cli("vade-goldens", "--check", "--dir", str(tmp_path)).returncode == 0
+    session = tmp_path / "plane_block_wall.json"
+    doc = json.loads(session.read_text())
+    doc["parts"][0]["assembly"]["constraints"][0]["friction"]["static"] = 0.35
+    session.write_text(json.dumps(doc, indent=1))
+    result = run_cli("vade-goldens", "--check", "--dir", str(tmp_path))
+    assert result.returncode == 1
+    assert (f"{tmp_path / 'plane_block_wall.mcap'}: STALE: {session} changed since its golden "
+            "was made (field parts[0].assembly.constraints[0].friction.static: 0.4 in the "
+            "golden, 0.35 now); regenerate it") in result.stdout
+    assert result.stdout.splitlines()[-1] == ("2 goldens: 1 match, 0 diverged, 1 stale, 0 "
+                                              "could not be replayed")
+    # The same values written otherwise (spacing, key order) are the same session.
+    session.write_text(json.dumps(json.loads((RECORDINGS / "plane_block_wall.json")
+                                             .read_text()), indent=3, sort_keys=True))
+    assert run_cli("vade-goldens", "--check", "--dir", str(tmp_path)).returncode == 0
+    golden = tmp_path / "gear_pendulum.mcap"
+    data = golden.read_bytes()
+    golden.write_bytes(data[:len(data) // 2])
+    result = run_cli("vade-goldens", "--check", "--dir", str(tmp_path), "gear_pendulum")
+    assert result.returncode == 2 and "cut short (a crash while it was written)" in \
+        result.stderr and "Traceback" not in result.stderr
+    # A regeneration with one bad session: named, and no golden written, not even the
+    # good ones before it in name order.
+    golden.write_bytes(data)
+    (tmp_path / "a_bad.json").write_text("{not json")
+    before = {p.name: p.read_bytes() for p in tmp_path.glob("*.mcap")}
+    result = run_cli("vade-goldens", "--dir", str(tmp_path))
+    assert result.returncode == 2 and "a_bad.json" in result.stderr
+    assert "cannot be recorded: no golden was written" in result.stderr
+    assert {p.name: p.read_bytes() for p in tmp_path.glob("*.mcap")} == before
+    (tmp_path / "a_bad.json").unlink()
+    shutil.copy(RECORDINGS / "plane_block_wall.json", session)  # its own bytes again
+    assert run_cli("vade-goldens", "--dir", str(tmp_path)).returncode == 0
+    assert {p.name: p.read_bytes() for p in tmp_path.glob("*.mcap")} == before
+
+
+def test_a_second_regeneration_of_a_folder_waits_its_turn(tmp_path):
+    """Two at once wrote the same NAME.mcap.partial files and renamed them from under each
+    other; the second is now refused while the first holds the folder's lock."""
+    import fcntl
+    import shutil
+
+    from conftest import run_cli
+    shutil.copy(RECORDINGS / "drop_on_table.json", tmp_path / "drop_on_table.json")
+    with open(tmp_path / ".vade-goldens.lock", "a") as held:
+        fcntl.flock(held.fileno(), fcntl.LOCK_EX)
+        result = run_cli("vade-goldens", "--dir", str(tmp_path))
+        assert result.returncode == 2 and "another vade-goldens is regenerating this folder" \
+            in result.stderr
+        assert not (tmp_path / "drop_on_table.mcap").exists()
+        # Checking needs no lock.
+        assert run_cli("vade-goldens", "--check", "--dir", str(tmp_path)).returncode == 2
+    assert run_cli("vade-goldens", "--dir", str(tmp_path)).returncode == 0

@@ -54,11 +54,17 @@ def test_the_cli_says_so_beside_the_divergence(tmp_path):
     lines = result.stdout.splitlines()
     assert lines[0].startswith("DIVERGED: first divergence at frame")
     assert lines[1].startswith("note: this recording was made with other physics defaults")
-    assert "--set physics.slide_integrator=analytic" in lines[1]
+    assert lines[1].endswith(f"to replay it as it was made: vade-replay {OLD} --as-recorded")
     many = run_cli("vade-replay", str(OLD), str(RECORDINGS / "gear_pendulum.mcap"))
     assert ("(made with other physics defaults: block_cut, final_pose_check, "
-            "slide_integrator, slide_off, slide_onset, slide_step_s, two_hand_max_mass_kg)"
-            ) in many.stdout
+            "slide_integrator, slide_off, slide_onset, slide_step_s, two_hand_max_mass_kg; "
+            f"vade-replay {OLD} --as-recorded replays it with them)") in many.stdout
+    # What it says works: the recording reproduces, bit for bit, exit 0.
+    as_made = run_cli("vade-replay", str(OLD), "--as-recorded")
+    assert as_made.returncode == 0 and as_made.stdout.startswith(
+        "as recorded (block_cut='both', final_pose_check='frame_end', "
+        "slide_integrator='analytic', slide_off='frame_end', slide_onset='sub_step', "
+        "two_hand_max_mass_kg=5.0): match: 241 frames")
     as_json = run_cli("vade-replay", str(OLD), "--json")
     assert json.loads(as_json.stdout)["physics_changed"]["slide_integrator"]["now"] == "analytic4"
 
@@ -136,19 +142,60 @@ def test_vade_goldens_check_says_a_default_changed_since_a_golden_was_recorded(t
     assert result.returncode == 1
     assert "DIVERGED first divergence at frame" in result.stdout
     assert ("recorded with other physics defaults: block_cut, final_pose_check, "
-            "slide_integrator, slide_off, slide_onset, slide_step_s, two_hand_max_mass_kg; if "
-            "that change is meant, re-record with vade-goldens") in result.stdout
+            "slide_integrator, slide_off, slide_onset, slide_step_s, two_hand_max_mass_kg; "
+            f"vade-replay {tmp_path / 'shaft_slide_off.mcap'} --as-recorded replays it with "
+            "them; if the change is meant, re-record with vade-goldens") in result.stdout
     # With another golden beside it that matches: a count of both at the end.
     shutil.copy(RECORDINGS / "drop_on_table.json", tmp_path / "drop_on_table.json")
     shutil.copy(RECORDINGS / "drop_on_table.mcap", tmp_path / "drop_on_table.mcap")
     result = run_cli("vade-goldens", "--check", "--dir", str(tmp_path))
     assert result.returncode == 1
-    assert result.stdout.splitlines()[-1] == ("2 goldens: 1 match, 1 diverged, 0 could not "
-                                              "be replayed")
+    assert result.stdout.splitlines()[-1] == ("2 goldens: 1 match, 1 diverged, 0 stale, 0 "
+                                              "could not be replayed")
     # A golden missing: named, the others still checked, and exit 2.
     shutil.copy(RECORDINGS / "tumbling_box.json", tmp_path / "tumbling_box.json")
     result = run_cli("vade-goldens", "--check", "--dir", str(tmp_path))
     assert result.returncode == 2 and "tumbling_box.mcap" in result.stderr
-    assert result.stdout.splitlines()[-1] == ("3 goldens: 1 match, 1 diverged, 1 could not "
-                                              "be replayed")
+    assert f"(record it with vade-goldens --dir {tmp_path} tumbling_box)" in result.stderr
+    assert result.stdout.splitlines()[-1] == ("3 goldens: 1 match, 1 diverged, 0 stale, 1 "
+                                              "could not be replayed")
 
+
+
+def test_as_recorded_keeps_a_constraints_own_friction_where_set_options_replaced_it(tmp_path):
+    """From a developer's trial: a recording made when the default dynamic friction was
+    0.25 and sliding ``analytic``, of a block whose constraint sets its own friction. The
+    ``--set physics.friction_dynamic=0.25`` that used to be suggested is a what-if of every
+    contact: it replaced the constraint's 0.3 and departed. ``--as-recorded`` restores the
+    recorded values as defaults, so the constraint's own friction stands: a match, exit 0;
+    the same with the default restored where it is used, and a diverging replay still
+    exits 1."""
+    from vade_replay import session as session_mod
+    from vade_replay.replay import record
+    doc = json.loads((RECORDINGS / "plane_block_wall.json").read_text())
+    doc["physics"] = {"friction_dynamic": 0.25, "slide_integrator": "analytic"}
+    made = tmp_path / "made.mcap"
+    record(session_mod.parse(json.dumps(doc).encode(), {}, source="made.json"), made)
+    del doc["physics"]  # the session left them to the defaults of the time
+    old = tmp_path / "old.mcap"
+    copy_recording(made, old, lambda t, i, d: d, edit_attachment=lambda name, data: json.dumps(
+        doc).encode() if name == "session.json" else data)
+    plain = replay(Recording(old))
+    assert not plain.match and set(plain.physics_changed) == {
+        "friction_dynamic", "slide_integrator", "slide_step_s"}
+    suggested_before = replay(Recording(old), overrides={
+        "physics.friction_dynamic": "0.25", "physics.slide_integrator": "analytic"})
+    assert not suggested_before.match
+    restored = replay(Recording(old), as_recorded=True)
+    assert restored.match and restored.physics_changed == {}
+    assert restored.as_recorded == {"friction_dynamic": 0.25, "slide_integrator": "analytic"}
+    result = run_cli("vade-replay", str(old), "--as-recorded", "--json")
+    assert result.returncode == 0 and json.loads(result.stdout)["match"] is True
+    refused = run_cli("vade-replay", str(old), "--as-recorded", "--set",
+                      "physics.friction_static=0.5")
+    assert refused.returncode == 2 and "--as-recorded" in refused.stderr
+    # As recorded and still different (the recorded frames edited): exit 1, as any replay.
+    edited = tmp_path / "edited.mcap"
+    from mcap_edit import nudge_pose
+    nudge_pose(old, edited, frame=170, axis=0, delta=1e-3)
+    assert run_cli("vade-replay", str(edited), "--as-recorded").returncode == 1

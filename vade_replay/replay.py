@@ -27,7 +27,8 @@ from .frames import FrameRecord, TrackerFrame
 from .modes import Cause, Mode
 from .recording import (RecordedFrame, Recording, RecordingWriter, complete_output,
                         partial_output, physics_metadata)
-from .scene import LENGTH_FIELDS, PAPER_DEFAULTS, UNIT_TO_M, Physics, Scene
+from .scene import (LENGTH_FIELDS, PAPER_DEFAULTS, UNIT_TO_M, Physics, Scene,
+                    physics_from_doc)
 from .session import Session, parse, strict_json
 from .spatial import Pose
 from .step import Stepper
@@ -88,6 +89,9 @@ class RunSummary:
     release_misses: list[dict] = field(default_factory=list)
     # The session's length unit: what a what-if's lengths (``overrides``) are in.
     units: str = "m"
+    # A replay as recorded (``as_made``): the physics defaults restored, name -> value
+    # (SI); None for a replay with this version's defaults.
+    as_recorded: dict | None = None
     # Each part's mass as the run had it (from its mesh and density, or its
     # mass_properties): a mesh in the wrong unit or a density in g/cm^3 shows here.
     masses_kg: dict[str, float] = field(default_factory=dict)
@@ -833,17 +837,51 @@ def as_recorded(changes: dict) -> tuple[str, list[str]]:
                      for key, value in sets.items()), left_out)
 
 
+def as_made(recording: Recording) -> dict:
+    """Set ``recording``'s session to build with the physics defaults it was made with
+    (its ``physics`` metadata, ``physics_changes``): each default changed since then is the
+    recorded one again, where the session leaves it to the default, before anything is
+    built from it (a constraint's friction is the physics default only where the session
+    gives it none). An effective sub-step is restored through the ``*_max_step_s`` that
+    fixes it where the recorded schemes do not bring it. Returns the values restored."""
+    session = recording.session
+    block = session.doc.get("physics", {})
+    f = UNIT_TO_M[session.doc.get("units", "m")]
+    changes = physics_changes(recording, physics_from_doc(block, f), {})
+    defaults = {name: change["recorded"] for name, change in changes.items()
+                if name not in _DERIVED}
+    try:
+        brought = physics_from_doc(block, f, defaults=defaults)
+    except (TypeError, ValueError) as exc:
+        raise RecordingError(f"its physics metadata cannot be used by this version ({exc})",
+                             file=str(recording.path), field="metadata physics") from None
+    for name, change in changes.items():
+        if name in _DERIVED and getattr(brought, name) != change["recorded"]:
+            defaults[name.replace("_step_s", "_max_step_s")] = change["recorded"]
+    recording.session = replace(session, physics_defaults=defaults)
+    return defaults
+
+
 def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
            out: str | Path | None = None,
-           on_frame: Callable[[ReplayFrame], None] | None = None) -> RunSummary:
+           on_frame: Callable[[ReplayFrame], None] | None = None,
+           as_recorded: bool = False) -> RunSummary:
     """Replay a recording from its inputs alone and check every derived message.
 
     With ``overrides`` the scene's physics is changed first (a what-if replay); the check
     then reports where the changed run departs from the recording. With ``out`` the
     regenerated recording is written there (as ``out.partial``, renamed when complete; a
     run that fails part way keeps the partial file, as ``record`` does, and says so); the
-    original file is never modified.
+    original file is never modified. With ``as_recorded`` the physics defaults are those
+    the recording was made with (``as_made``), not this version's: a replay that proves an
+    older recording still reproduces where a default moved since.
     """
+    restored = None
+    if as_recorded:
+        if overrides:
+            raise ConfigError("--as-recorded replays a recording with the physics it was made "
+                              "with; a what-if (--set) is a replay of its own", field="--set")
+        restored = as_made(recording)
     session, applied = apply_overrides(recording.session, overrides or {})
     scene = session.build_scene()
     collision = CollisionWorld(scene)
@@ -948,6 +986,7 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     summary.match = summary.first_divergence is None
     summary.counters = dict(collision.stats)
     summary.truncated = recording.truncated
+    summary.as_recorded = restored
     return summary
 
 

@@ -562,8 +562,11 @@ FLOAT_FIELDS = frozenset([f.name for f in fields(Physics) if type(f.default) is 
 INT_FIELDS = frozenset(f.name for f in fields(Physics) if type(f.default) is int)
 
 
-def physics_from_doc(doc: dict, length_factor: float, *, file: str | None = None) -> Physics:
-    """Physics from a session's ``physics`` block, lengths converted to metres."""
+def physics_from_doc(doc: dict, length_factor: float, *, file: str | None = None,
+                     defaults: dict | None = None) -> Physics:
+    """Physics from a session's ``physics`` block, lengths converted to metres. ``defaults``
+    (SI, lengths in metres) stand for this version's where the block gives no value: the
+    physics a recording was made with (``replay.as_made``)."""
     values = dict(doc)
     model = values.get("model", "general")
     if model == "paper":
@@ -574,6 +577,9 @@ def physics_from_doc(doc: dict, length_factor: float, *, file: str | None = None
     for key in LENGTH_FIELDS:
         if key in values:
             values[key] = float(values[key]) * length_factor
+    # (Names of their own: compiled, a loop variable keeps the type of its first use.)
+    for name, default in (defaults or {}).items():
+        values.setdefault(name, tuple(default) if isinstance(default, list) else default)
     # A whole number given for a real parameter ("friction_static": 0) is that float, and a
     # count written as a float ("release_window": 7.0, which JSON Schema calls an integer)
     # is that int: the simulation sees the same value whichever way it was written, and
@@ -589,11 +595,14 @@ def physics_from_doc(doc: dict, length_factor: float, *, file: str | None = None
     return Physics(**values)
 
 
-def build_scene(session: dict, files: dict[str, bytes], *, file: str = "<session>") -> Scene:
-    """Build the frozen Scene from a validated session document and the files it names."""
+def build_scene(session: dict, files: dict[str, bytes], *, file: str = "<session>",
+                physics_defaults: dict | None = None) -> Scene:
+    """Build the frozen Scene from a validated session document and the files it names
+    (``physics_defaults``: see ``physics_from_doc``)."""
     units = session.get("units", "m")
     f = UNIT_TO_M[units]
-    physics = physics_from_doc(session.get("physics", {}), f, file=file)
+    physics = physics_from_doc(session.get("physics", {}), f, file=file,
+                               defaults=physics_defaults)
     names = [p["name"] for p in session["parts"]]
     if len(set(names)) != len(names):
         raise SessionError("part names must be unique", file=file, field="parts")

@@ -269,6 +269,9 @@ class Session:
     raw: bytes   # the session file's own bytes, attached to recordings as they are
     # Not validated again: a recording's digest said these bytes were (parse(validated=)).
     trusted: bool = False
+    # Physics values (SI) that stand for this version's defaults where the session gives
+    # none: those a recording was made with (``replay.as_made``).
+    physics_defaults: dict | None = None
 
     @property
     def name(self) -> str:
@@ -276,7 +279,8 @@ class Session:
 
     def build_scene(self) -> Scene:
         try:
-            return build_scene(self.doc, self.files, file=self.source)
+            return build_scene(self.doc, self.files, file=self.source,
+                               physics_defaults=self.physics_defaults)
         except VadeError:
             raise
         except Exception:
