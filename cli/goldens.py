@@ -8,7 +8,10 @@ reason in the commit message (what physics changed and why the new numbers are r
 from __future__ import annotations
 
 import argparse
+import itertools
+import shutil
 import sys
+import tempfile
 from pathlib import Path
 
 from vade_replay import session as session_mod
@@ -73,6 +76,29 @@ def _check(path: Path, golden: Path) -> tuple[str, str]:
                    f"{', '.join(summary.physics_changed)}; vade-replay {golden} --as-recorded "
                    "replays it with them; if the change is meant, re-record with vade-goldens)")
     return "diverged", status
+
+
+def changed(before: Path, after: Path) -> str:
+    """What a regeneration changed in a golden, for the commit that makes it: nothing,
+    only its metadata or session text, or its frames from the first that differs."""
+    if before.read_bytes() == after.read_bytes():
+        return "unchanged"
+    try:
+        old, new = Recording(before), Recording(after)
+        count = 0
+        for a, b in itertools.zip_longest(old.frames(), new.frames()):
+            if a is None or b is None:
+                return f"frames differ from frame {count} (one has {count} frames)"
+            if (a.inputs, a.derived) != (b.inputs, b.derived):
+                return f"frames differ from frame {a.inputs.frame}"
+            count += 1
+    except VadeError as exc:
+        return f"the golden before could not be read ({exc.message})"
+    what = sorted(name for name in set(old.metadata) | set(new.metadata)
+                  if old.metadata.get(name) != new.metadata.get(name))
+    if old.session.raw != new.session.raw or old.session.files != new.session.files:
+        what.insert(0, "session")
+    return f"frames unchanged; {', '.join(what) or 'the file'} changed"
 
 
 def _lock(folder: Path):
@@ -152,10 +178,16 @@ def _regenerate(folder: Path, sessions: list[Path]) -> int:
             print(f"{bad} session{'s' if bad > 1 else ''} cannot be recorded: no golden was "
                   "written", file=sys.stderr)
             return EXIT_UNUSABLE
-        for path, session in loaded:
-            golden = path.with_suffix(".mcap")
-            summary = record(session, golden)
-            print(f"{golden}: {summary.frames} frames, {summary.transitions} transitions")
+        with tempfile.TemporaryDirectory(prefix="vade-goldens-") as keep:
+            for path, session in loaded:
+                golden = path.with_suffix(".mcap")
+                before = Path(keep) / golden.name
+                if golden.is_file():
+                    shutil.copyfile(golden, before)
+                summary = record(session, golden)
+                change = changed(before, golden) if before.exists() else "new"
+                print(f"{golden}: {summary.frames} frames, {summary.transitions} "
+                      f"transitions; {change}")
         return EXIT_OK
     finally:
         if lock is not None:

@@ -601,3 +601,33 @@ def test_a_named_pipe_whose_reader_went_is_an_error_not_a_quiet_stop(tmp_path):
     result = run_cli("vade-replay", str(RECORDINGS / "shaft_placed.mcap"), "-o", str(fifo),
                      process=True)
     _assert_clean_error(result, str(fifo), "cannot write a recording to a pipe")
+
+
+def test_ctrl_c_while_a_command_is_still_importing_is_interrupted_not_a_traceback(
+        monkeypatch, capsys):
+    """The installed commands start in ``cli._launch``: Ctrl-C during the ~0.3 s of imports
+    (a traceback from inside numpy or dataclasses) is "interrupted", exit 130, as later."""
+    import importlib
+
+    from vade_replay.cli import _launch
+
+    def interrupted(name):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(importlib, "import_module", interrupted)
+    with pytest.raises(SystemExit) as exit_:
+        _launch.replay()
+    assert exit_.value.code == 130 and capsys.readouterr().err == "interrupted\n"
+
+
+def test_the_installed_commands_start_in_the_launcher():
+    import tomllib
+    from pathlib import Path
+
+    scripts = tomllib.loads((Path(__file__).resolve().parent.parent / "pyproject.toml")
+                            .read_text())["project"]["scripts"]
+    from vade_replay.cli import _launch
+    for command, target in scripts.items():
+        module, _, name = target.partition(":")
+        assert module == "vade_replay.cli._launch" and callable(getattr(_launch, name))
+        assert command == f"vade-{name}"

@@ -192,3 +192,31 @@ def test_a_second_regeneration_of_a_folder_waits_its_turn(tmp_path):
         # Checking needs no lock.
         assert run_cli("vade-goldens", "--check", "--dir", str(tmp_path)).returncode == 2
     assert run_cli("vade-goldens", "--dir", str(tmp_path)).returncode == 0
+
+
+def test_a_regeneration_says_what_it_changed_in_each_golden(tmp_path):
+    """For the commit that remakes goldens: each line says unchanged, new, only the session
+    text or metadata changed, or the first frame that differs (a friction edit)."""
+    for name in ("plane_block_wall", "drop_on_table"):
+        for suffix in (".json", ".mcap"):
+            shutil.copy(RECORDINGS / f"{name}{suffix}", tmp_path / f"{name}{suffix}")
+    result = run_cli("vade-goldens", "--dir", str(tmp_path))
+    assert result.returncode == 0
+    assert [line.rsplit("; ", 1)[1] for line in result.stdout.splitlines()] == \
+        ["unchanged", "unchanged"]
+    wall = tmp_path / "plane_block_wall.json"
+    doc = json.loads(wall.read_text())
+    doc["parts"][0]["assembly"]["constraints"][0]["friction"]["dynamic"] = 0.25
+    wall.write_text(json.dumps(doc))
+    drop = tmp_path / "drop_on_table.json"
+    doc = json.loads(drop.read_text())
+    doc["description"] = "the same drop, described again"
+    drop.write_text(json.dumps(doc))
+    result = run_cli("vade-goldens", "--dir", str(tmp_path))
+    lines = result.stdout.splitlines()
+    assert lines[0].endswith("; frames unchanged; session, validated changed")
+    assert "; frames differ from frame " in lines[1]
+    (tmp_path / "drop_on_table.mcap").unlink()
+    result = run_cli("vade-goldens", "--dir", str(tmp_path), "drop_on_table")
+    assert result.stdout.splitlines() == [f"{tmp_path / 'drop_on_table.mcap'}: 151 frames, 3 "
+                                          "transitions; new"]
