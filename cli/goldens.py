@@ -9,9 +9,8 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import shutil
+import os
 import sys
-import tempfile
 from pathlib import Path
 
 from vade_replay import session as session_mod
@@ -44,11 +43,11 @@ def stale(session: session_mod.Session, recording: Recording) -> str | None:
     """How a session file (and the files it names) differs from the session a golden was
     recorded from, or None: text that reads as the same values is the same session."""
     recorded = recording.session
-    if session.doc != recorded.doc:
-        found = _first_difference(recorded.doc, session.doc)
-        if found is not None:
-            path, was, now = found
-            return f"field {path or '(the whole file)'}: {was!r} in the golden, {now!r} now"
+    # Value by value, -0.0 not 0.0 and 3 not 3.0 (``==`` says both are the same).
+    found = _first_difference(recorded.doc, session.doc)
+    if found is not None:
+        path, was, now = found
+        return f"field {path or '(the whole file)'}: {was!r} in the golden, {now!r} now"
     for name in sorted(set(session.files) | set(recorded.files)):
         if session.files.get(name) != recorded.files.get(name):
             return f"file {name} is not the one the golden was made with"
@@ -160,8 +159,9 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _regenerate(folder: Path, sessions: list[Path]) -> int:
-    """Every session read and its scene built before any golden is written: a bad one
-    stops the run with the goldens as they were, not half of them remade."""
+    """Every session recorded beside its golden (``.NAME.mcap.new``) before any golden is
+    replaced: a session that cannot be read, built or recorded stops the run with the
+    goldens as they were, not half of them remade."""
     lock = _lock(folder)
     try:
         loaded = []
@@ -178,17 +178,28 @@ def _regenerate(folder: Path, sessions: list[Path]) -> int:
             print(f"{bad} session{'s' if bad > 1 else ''} cannot be recorded: no golden was "
                   "written", file=sys.stderr)
             return EXIT_UNUSABLE
-        with tempfile.TemporaryDirectory(prefix="vade-goldens-") as keep:
+        made: list[tuple[Path, Path, str]] = []
+        try:
             for path, session in loaded:
                 golden = path.with_suffix(".mcap")
-                before = Path(keep) / golden.name
-                if golden.is_file():
-                    shutil.copyfile(golden, before)
-                summary = record(session, golden)
-                change = changed(before, golden) if before.exists() else "new"
-                print(f"{golden}: {summary.frames} frames, {summary.transitions} "
-                      f"transitions; {change}")
-        return EXIT_OK
+                new = golden.with_name(f".{golden.name}.new")
+                try:
+                    summary = record(session, new)
+                except VadeError as exc:
+                    print(f"error: {exc.describe()}", file=sys.stderr)
+                    print("a session cannot be recorded: no golden was written",
+                          file=sys.stderr)
+                    return EXIT_UNUSABLE
+                made.append((golden, new, f"{summary.frames} frames, {summary.transitions} "
+                             "transitions"))
+            for golden, new, counts in made:
+                change = changed(golden, new) if golden.is_file() else "new"
+                os.replace(new, golden)
+                print(f"{golden}: {counts}; {change}")
+            return EXIT_OK
+        finally:
+            for _, new, _ in made:
+                new.unlink(missing_ok=True)  # not moved over its golden: a failed run
     finally:
         if lock is not None:
             lock.close()

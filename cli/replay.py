@@ -373,7 +373,8 @@ def _warn(path: str, summary) -> None:
         print(f"warning: {path}: the recording was cut short (no end records); replayed "
               f"the {summary.frames} complete frames it holds", file=sys.stderr)
     for warning in summary.warnings:
-        print(f"warning: {path}: what-if: {warning}", file=sys.stderr)
+        what_if = "what-if: " if getattr(summary, "overrides", None) else ""
+        print(f"warning: {path}: {what_if}{warning}", file=sys.stderr)
 
 
 def _verdict(summary, overrides: dict[str, str], *, short: bool = False,
@@ -460,7 +461,8 @@ def _one(args, path: str, overrides: dict[str, str], outputs: dict[str, TableFil
                   "`rerun` where there is one", file=sys.stderr)
             spawn = False
         counts = write_recording_review(recording, args.rerun, overrides=overrides,
-                                        divergence_frame=divergence, spawn=spawn)
+                                        divergence_frame=divergence, spawn=spawn,
+                                        as_recorded=args.as_recorded)
         if not args.json:
             print(f"review: {args.rerun} ({counts['frames']} frames; open with "
                   f"`rerun {args.rerun}`)", file=_lines)

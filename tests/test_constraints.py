@@ -375,3 +375,25 @@ def test_a_what_if_length_may_carry_its_unit_and_means_one_length_in_any_session
     assert applied == {key: pytest.approx(0.01, rel=1e-15)}
     with pytest.raises(ConfigError, match="has a length unit, and this is not a length"):
         apply_overrides(metres, {"physics.friction_static": "3mm"})
+
+
+def test_scene_warnings_number_parts_as_the_session_lists_them_and_let_parts_stack():
+    """The scene sorts its parts by name; a warning names the part as the session lists it
+    (``parts[1]`` for the second written). A cap lying on the peg rests on a part, not in
+    mid-air; the same cap 100 mm above the peg floats."""
+    from vade_replay.collision import CollisionWorld
+    from vade_replay.replay import scene_warnings
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+    cap = {"name": "cap", "shape": {"type": "box", "size": [0.02, 0.02, 0.02]},
+           "density": 2700, "pose": {"position": [0.0, 0.0, 0.83]}}  # on the peg's top
+    doc["parts"].append(cap)
+
+    def warnings():
+        session = session_mod.parse(json.dumps(doc).encode(), {}, source="s.json")
+        scene = session.build_scene()
+        return scene_warnings(scene, CollisionWorld(scene), session.doc)
+
+    assert warnings() == []
+    cap["pose"]["position"][2] += 0.1
+    (floating,) = warnings()
+    assert floating.startswith("parts[1].pose: cap starts at least 100 mm from the table")

@@ -220,3 +220,26 @@ def test_a_regeneration_says_what_it_changed_in_each_golden(tmp_path):
     result = run_cli("vade-goldens", "--dir", str(tmp_path), "drop_on_table")
     assert result.stdout.splitlines() == [f"{tmp_path / 'drop_on_table.mcap'}: 151 frames, 3 "
                                           "transitions; new"]
+
+
+def test_a_session_that_fails_while_it_is_recorded_leaves_every_golden_as_it_was(tmp_path):
+    """A tracker keyframe a million metres out is found only as the session is recorded,
+    after the goldens before it in name order were recorded too: none is replaced."""
+    for name in ("drop_on_table", "plane_block_wall"):
+        for suffix in (".json", ".mcap"):
+            shutil.copy(RECORDINGS / f"{name}{suffix}", tmp_path / f"{name}{suffix}")
+    drop = tmp_path / "drop_on_table.json"
+    doc = json.loads(drop.read_text())
+    doc["description"] = "described again: its golden would change"
+    drop.write_text(json.dumps(doc))
+    wall = tmp_path / "plane_block_wall.json"
+    doc = json.loads(wall.read_text())
+    keyframe = next(kf for kf in doc["tracker"]["devices"]["right_hand"] if "position" in kf)
+    keyframe["position"] = [2e6, 0.0, 0.0]
+    wall.write_text(json.dumps(doc))
+    before = {p.name: p.read_bytes() for p in tmp_path.glob("*.mcap")}
+    result = run_cli("vade-goldens", "--dir", str(tmp_path))
+    assert result.returncode == 2 and "no golden was written" in result.stderr
+    assert "Traceback" not in result.stderr
+    assert {p.name: p.read_bytes() for p in tmp_path.glob("*.mcap")} == before
+    assert not list(tmp_path.glob(".*.new"))

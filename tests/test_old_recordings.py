@@ -199,3 +199,54 @@ def test_as_recorded_keeps_a_constraints_own_friction_where_set_options_replaced
     from mcap_edit import nudge_pose
     nudge_pose(old, edited, frame=170, axis=0, delta=1e-3)
     assert run_cli("vade-replay", str(edited), "--as-recorded").returncode == 1
+
+
+def _made_with(tmp_path: Path, physics: dict, left: dict, name: str) -> Path:
+    """plane_block_wall recorded with ``physics``, its session then rewritten to say only
+    ``left``: as if the rest had been the defaults of the time it was made."""
+    from vade_replay import session as session_mod
+    from vade_replay.replay import record
+    doc = json.loads((RECORDINGS / "plane_block_wall.json").read_text())
+    doc["physics"] = physics
+    made = tmp_path / f"{name}_made.mcap"
+    record(session_mod.parse(json.dumps(doc).encode(), {}, source="made.json"), made)
+    doc["physics"] = left
+    old = tmp_path / f"{name}.mcap"
+    copy_recording(made, old, lambda t, i, d: d, edit_attachment=lambda n, data: json.dumps(
+        doc).encode() if n == "session.json" else data)
+    return old
+
+
+def test_as_recorded_restores_the_paper_models_schemes_and_sub_steps_and_changes_no_file(
+        tmp_path):
+    """From a review: under ``model: paper`` the recorded scheme must win over the paper's
+    own default (it was applied after it and had no effect); a sub-step restored through
+    its bound is no changed default in the summary; the Recording passed in is not changed
+    (a later plain replay of it is plain); --rerun reviews the run as recorded."""
+    old = _made_with(tmp_path, {"model": "paper", "slide_integrator": "analytic4"},
+                     {"model": "paper"}, "paper")
+    recording = Recording(old)
+    assert not replay(recording).match
+    restored = replay(recording, as_recorded=True)
+    assert restored.match, restored.first_divergence
+    assert restored.as_recorded["slide_integrator"] == "analytic4"
+    assert restored.physics_changed == {}
+    again = replay(recording)  # the same object, replayed plainly again
+    assert not again.match and again.as_recorded is None
+    step = _made_with(tmp_path, {"slide_max_step_s": 0.004}, {}, "step")
+    summary = replay(Recording(step), as_recorded=True)
+    assert summary.match and summary.as_recorded == {"slide_max_step_s": 0.004}
+    assert summary.physics_changed == {}
+    review = run_cli("vade-replay", str(old), "--as-recorded", "--rerun",
+                     str(tmp_path / "review.rrd"))
+    assert review.returncode == 0 and review.stdout.startswith("as recorded (")
+
+
+def test_as_recorded_says_when_a_recording_holds_no_physics_to_restore(tmp_path):
+    bare = tmp_path / "bare.mcap"
+    copy_recording(RECORDINGS / "drop_on_table.mcap", bare, lambda t, i, d: d,
+                   edit_metadata=lambda name, values: {} if name == "physics" else values)
+    result = run_cli("vade-replay", str(bare), "--as-recorded")
+    assert result.returncode == 0 and result.stdout.startswith("match")
+    assert "--as-recorded: the recording holds no physics metadata" in result.stderr
+    assert "what-if" not in result.stderr

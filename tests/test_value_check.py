@@ -242,3 +242,42 @@ def test_a_frame_listing_many_parts_is_checked_by_its_bytes_with_the_same_verdic
         else:
             assert checker.check(record, written) is None
     assert max(shown) == 21 and (parts == codec.PARTS_FULL or min(shown) == 1)
+
+
+def test_a_snapshot_that_comes_back_after_frames_checked_by_value_is_listed():
+    """The encoder's text cache lags behind frames checked by value; a part whose snapshot
+    object comes back (X, then Y, then X again) must still be listed as changed in the
+    third frame, as the reference encoder lists it, and a recording leaving it out must
+    not match."""
+    from vade_replay.frames import FrameRecord, PartSnapshot, TrackerFrame
+
+    def snap(name, z):
+        return PartSnapshot(name, "INSPACE", (0.0, 0.0, z), (0.0, 0.0, 0.0, 1.0),
+                            (0.0,) * 3, (0.0,) * 3)
+
+    x, y = snap("a", 1.0), snap("a", 0.5)
+    others = tuple(snap(f"r{i}", 0.1 * i) for i in range(3))
+    frames = [FrameRecord(TrackerFrame(k, k * 16_666_667, ()), None, (part, *others))
+              for k, part in enumerate((x, y, x, x))]
+    reference = []
+    previous = None
+    for record in frames:
+        reference.append(codec.derived_messages(
+            record, parts=codec.PARTS_CHANGED,
+            previous_parts=previous.parts if previous else None,
+            previous_time_ns=previous.time_ns if previous else None))
+        previous = record
+    encoder = codec.FrameEncoder(codec.PARTS_CHANGED)
+    assert encoder.derived_messages(frames[0]) == reference[0]
+    assert encoder.matches(frames[1], reference[1])  # by value: the text cache stays at X
+    assert encoder.derived_messages(frames[2]) == reference[2]
+    assert json.loads(reference[2][0][1])["parts"][0]["name"] == "a"
+    checker = codec.FrameEncoder(codec.PARTS_CHANGED)
+    assert checker.derived_messages(frames[0]) == reference[0]
+    assert checker.matches(frames[1], reference[1])
+    left_out = json.loads(reference[2][0][1])
+    left_out["parts"] = []
+    doc = json.loads(reference[2][1][1])
+    doc["transforms"] = []
+    assert checker.check(frames[2], [(codec.PARTS_TOPIC, _dumps(left_out)),
+                                     (codec.FOXGLOVE_TOPIC, _dumps(doc))]) == reference[2]

@@ -413,8 +413,11 @@ class FrameEncoder:
         if self.parts == PARTS_CHANGED and len(previous_items) == n \
                 and not keyframe(t, previous_time):
             # Only what differs from last frame (by value: a new snapshot equal to the old
-            # one is not listed), and the base, whose transform is always written.
-            listed = [i for i in changed if i >= first and items[i] != previous_items[i]]
+            # one is not listed), and the base, whose transform is always written. Against
+            # last frame's snapshots, not the cached texts' (``changed``): after frames
+            # checked by value (``matches``) the cache is older than last frame.
+            listed = [i for i in range(first, n) if items[i] is not previous_items[i]
+                      and items[i] != previous_items[i]]
             parts_text = ",".join([texts[i] for i in listed])
             shown = ([0] if first else []) + listed
             transforms = ",".join([heads[i] + stamp + tails[i] for i in shown])

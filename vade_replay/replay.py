@@ -497,7 +497,8 @@ def record(session: Session, out: str | Path, *,
     scene = session.build_scene()
     collision = CollisionWorld(scene)
     summary = RunSummary(session.name, parts=[p.name for p in scene.parts],
-                         warnings=session.warnings() + scene_warnings(scene, collision),
+                         warnings=session.warnings() + scene_warnings(scene, collision,
+                                                                      session.doc),
                          units=session.doc.get("units", "m"),
                          masses_kg={p.name: p.mass_kg for p in scene.parts})
     first_time = None
@@ -634,15 +635,20 @@ def _depth_into_base(collision: CollisionWorld, part: str, k: int, mate: cn.Mate
     return min(depths, default=math.inf)
 
 
-def scene_warnings(scene: Scene, collision: CollisionWorld) -> list[str]:
+def scene_warnings(scene: Scene, collision: CollisionWorld,
+                   doc: dict | None = None) -> list[str]:
     """What the built scene shows that its document does not (``vade-record`` prints them
     with the session's own warnings): a constraint's part side on no face of the part; a
     final pose on none of the part's constraints, or
     inside the base along the one it is on (never reached by sliding); a part resting at
-    the start in mid-air (resting parts do not fall until touched)."""
+    the start in mid-air (resting parts do not fall until touched). ``doc``, the session
+    document, numbers the parts as the session lists them (the scene sorts them by name)."""
+    listed = {str(p.get("name")): i for i, p in enumerate((doc or {}).get("parts") or [])}
+    index = {b.name: listed.get(b.name, k) for k, b in enumerate(scene.parts)}
     out = []
     counters = dict(collision.stats)  # a run's counters count the run's own queries
-    for i, body in enumerate(scene.parts):
+    for body in scene.parts:
+        i = index[body.name]
         for k, mate in enumerate(body.assembly.mates if body.assembly else ()):
             if len(mate.part_feature_faces) == 0:
                 # The base's side is refused so (scene.py); a part's bore may be a little
@@ -679,17 +685,22 @@ def scene_warnings(scene: Scene, collision: CollisionWorld) -> list[str]:
         snapped = cn.recognise(mate, final) or final
         depth = _depth_into_base(collision, body.name, k, mate, snapped)
         if depth > _INSIDE_BASE_M:
-            out.append(f"parts[{i}].assembly.final_pose: puts {body.name} about {depth * 1e3:.2g} mm "
-                       f"into the base (on {mate.name}): the base stops it short of the pose, "
-                       "which it then reaches only within final_tolerance")
-    below = [_world_box(b, b.initial_pose) for b in scene.environment]
+            out.append(f"parts[{i}].assembly.final_pose: puts {body.name} about "
+                       f"{depth * 1e3:.2g} mm into the base (on {mate.name}): the base stops "
+                       "it short of the pose, which it then reaches only within "
+                       "final_tolerance")
+    # What a resting part can lie on: the environment, a fixed base, another part.
+    fixed = [_world_box(b, b.initial_pose) for b in scene.environment]
     if scene.base is not None and scene.base_fixed:
-        below.append(_world_box(scene.base, scene.base.initial_pose))
-    for i, body in enumerate(scene.parts):
-        if body.initial_mode is not Mode.STATIC or not below:
+        fixed.append(_world_box(scene.base, scene.base.initial_pose))
+    boxes = {b.name: _world_box(b, b.initial_pose) for b in scene.parts}
+    for body in scene.parts:
+        others = fixed + [box for name, box in boxes.items() if name != body.name]
+        if body.initial_mode is not Mode.STATIC or not others:
             continue
-        gap = min(_box_gap(_world_box(body, body.initial_pose), box) for box in below)
+        gap = min(_box_gap(boxes[body.name], box) for box in others)
         if gap > _FLOATING_M:
+            i = index[body.name]
             out.append(f"parts[{i}].pose: {body.name} starts at least {gap * 1e3:.3g} mm from "
                        "the table and every other object, and stays there until a hand "
                        "touches it: resting parts do not fall")
@@ -837,14 +848,18 @@ def as_recorded(changes: dict) -> tuple[str, list[str]]:
                      for key, value in sets.items()), left_out)
 
 
-def as_made(recording: Recording) -> dict:
-    """Set ``recording``'s session to build with the physics defaults it was made with
-    (its ``physics`` metadata, ``physics_changes``): each default changed since then is the
-    recorded one again, where the session leaves it to the default, before anything is
-    built from it (a constraint's friction is the physics default only where the session
-    gives it none). An effective sub-step is restored through the ``*_max_step_s`` that
-    fixes it where the recorded schemes do not bring it. Returns the values restored."""
+def as_made(recording: Recording) -> tuple[Session, dict | None]:
+    """``recording``'s session set to build with the physics defaults it was made with (its
+    ``physics`` metadata, ``physics_changes``), and the values restored: each default
+    changed since then is the recorded one again, where the session leaves it to the
+    default, before anything is built from it (a constraint's friction is the physics
+    default only where the session gives it none). An effective sub-step is restored
+    through the ``*_max_step_s`` that fixes it where the recorded schemes do not bring it.
+    ``None`` for the values of a recording without physics metadata (not made by
+    vade-record): its session as it is. The recording itself is not changed."""
     session = recording.session
+    if not recording.metadata.get("physics"):
+        return session, None
     block = session.doc.get("physics", {})
     f = UNIT_TO_M[session.doc.get("units", "m")]
     changes = physics_changes(recording, physics_from_doc(block, f), {})
@@ -858,8 +873,7 @@ def as_made(recording: Recording) -> dict:
     for name, change in changes.items():
         if name in _DERIVED and getattr(brought, name) != change["recorded"]:
             defaults[name.replace("_step_s", "_max_step_s")] = change["recorded"]
-    recording.session = replace(session, physics_defaults=defaults)
-    return defaults
+    return replace(session, physics_defaults=defaults), defaults
 
 
 def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
@@ -877,12 +891,13 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     older recording still reproduces where a default moved since.
     """
     restored = None
+    session = recording.session
     if as_recorded:
         if overrides:
             raise ConfigError("--as-recorded replays a recording with the physics it was made "
                               "with; a what-if (--set) is a replay of its own", field="--set")
-        restored = as_made(recording)
-    session, applied = apply_overrides(recording.session, overrides or {})
+        session, restored = as_made(recording)
+    session, applied = apply_overrides(session, overrides or {})
     scene = session.build_scene()
     collision = CollisionWorld(scene)
     summary = RunSummary(session.name, parts=[p.name for p in scene.parts], overrides=applied,
@@ -986,7 +1001,16 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     summary.match = summary.first_divergence is None
     summary.counters = dict(collision.stats)
     summary.truncated = recording.truncated
-    summary.as_recorded = restored
+    if as_recorded:
+        summary.as_recorded = restored
+        if restored is None:
+            summary.warnings.append("--as-recorded: the recording holds no physics metadata "
+                                    "(not made by vade-record): replayed with this version's "
+                                    "defaults")
+        else:
+            # A sub-step bound set to restore a recorded step is no changed default.
+            for name in [n for n in summary.physics_changed if n in restored]:
+                del summary.physics_changed[name]
     return summary
 
 

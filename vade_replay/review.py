@@ -11,7 +11,7 @@ from typing import Iterator
 
 from .frames import FrameRecord
 from .recording import Recording
-from .replay import apply_overrides, recorded_records, simulate
+from .replay import apply_overrides, as_made, recorded_records, simulate
 from .scene import Body, Scene
 from .view import MeshInfo, SceneInfo, write_review
 
@@ -37,15 +37,18 @@ def _recorded(recording: Recording) -> Iterator[FrameRecord]:
 
 def write_recording_review(recording: Recording, out: str | Path, *,
                            overrides: dict[str, str] | None = None,
-                           divergence_frame: int | None = None, spawn: bool = False) -> dict:
+                           divergence_frame: int | None = None, spawn: bool = False,
+                           as_recorded: bool = False) -> dict:
     """Write ``out`` (.rrd): the recorded run, plus the re-run where it matters.
 
     With ``overrides`` (a what-if), the changed run is shown beside the recorded one from
     the start, with the pose difference over time. Without them, the replay is shown beside
-    the recording only if it diverged, from ``divergence_frame`` on.
+    the recording only if it diverged, from ``divergence_frame`` on. With ``as_recorded``
+    the re-run has the physics defaults the recording was made with (``replay.as_made``).
     """
-    base_scene = recording.session.build_scene()
-    session, applied = apply_overrides(recording.session, overrides or {})
+    session = as_made(recording)[0] if as_recorded else recording.session
+    base_scene = session.build_scene()
+    session, applied = apply_overrides(session, overrides or {})
     scene = session.build_scene() if applied else base_scene
     compare = None
     label = "replayed"

@@ -568,17 +568,20 @@ def physics_from_doc(doc: dict, length_factor: float, *, file: str | None = None
     (SI, lengths in metres) stand for this version's where the block gives no value: the
     physics a recording was made with (``replay.as_made``)."""
     values = dict(doc)
-    model = values.get("model", "general")
+    restored = defaults or {}
+    model = values.get("model", restored.get("model", "general"))
     if model == "paper":
+        # The paper's schemes where the session names none: those of the time a recording
+        # was made, where it says (``defaults``), else today's.
         for key, value in PAPER_DEFAULTS.items():
-            values.setdefault(key, value)
+            values.setdefault(key, restored.get(key, value))
     if "gravity" in values:
         values["gravity"] = _vec(values["gravity"], length_factor)
     for key in LENGTH_FIELDS:
         if key in values:
             values[key] = float(values[key]) * length_factor
     # (Names of their own: compiled, a loop variable keeps the type of its first use.)
-    for name, default in (defaults or {}).items():
+    for name, default in restored.items():
         values.setdefault(name, tuple(default) if isinstance(default, list) else default)
     # A whole number given for a real parameter ("friction_static": 0) is that float, and a
     # count written as a float ("release_window": 7.0, which JSON Schema calls an integer)

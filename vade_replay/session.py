@@ -116,8 +116,8 @@ def validate(doc: object, *, file: str) -> None:
 _METRES_LIKE = 3.0
 
 
-# Densities of solids a part is made of, kg/m^3: from foams (~30) to tungsten (19,300).
-_DENSITY_RANGE = (20.0, 25000.0)
+# Densities of solids a part is made of, kg/m^3: from foams (~15) to tungsten (19,300).
+_DENSITY_RANGE = (10.0, 25000.0)
 
 
 def _unlikely_densities(doc: dict) -> list[str]:
