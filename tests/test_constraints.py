@@ -397,3 +397,19 @@ def test_scene_warnings_number_parts_as_the_session_lists_them_and_let_parts_sta
     cap["pose"]["position"][2] += 0.1
     (floating,) = warnings()
     assert floating.startswith("parts[1].pose: cap starts at least 100 mm from the table")
+
+
+def test_the_shipped_missed_release_golden_is_what_the_readme_says():
+    """``recordings/shaft_release_missed``: one release that missed bore_on_shaft by 8 mm,
+    and a 10 mm tolerance would have caught it (the README's example)."""
+    from vade_replay.recording import Recording
+    from vade_replay.replay import replay
+    path = RECORDINGS / "shaft_release_missed.mcap"
+    summary = replay(Recording(path))
+    (miss,) = summary.release_misses
+    assert summary.match and miss["part"] == "sleeve" and miss["frame"] == 78
+    assert miss["off_distance_m"] == pytest.approx(0.008, abs=1e-9)
+    key = "parts.sleeve.constraints.bore_on_shaft.tolerance.distance"
+    what_if = replay(Recording(path), overrides={key: "10mm"}).to_dict()
+    assert what_if["analysis"]["parts"]["sleeve"]["placed_at_s"] is not None
+    assert what_if["recorded_analysis"]["parts"]["sleeve"]["placed_at_s"] is None
