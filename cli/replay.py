@@ -77,9 +77,6 @@ def main(argv: list[str] | None = None) -> int:
     # Files and options in any order (a study's files after --csv OUT.csv, say).
     args = _parser().parse_intermixed_args(argv)
     overrides = _overrides(args.set)
-    if args.as_recorded and overrides:
-        raise ConfigError("--as-recorded replays a recording with the physics it was made "
-                          "with; a what-if (--set) is a replay of its own", field="--set")
     if args.spawn and not args.rerun:
         raise ConfigError("--spawn opens the review: give --rerun OUT.rrd too", field="--spawn")
     if args.jobs < 0:

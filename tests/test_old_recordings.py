@@ -191,9 +191,15 @@ def test_as_recorded_keeps_a_constraints_own_friction_where_set_options_replaced
     assert restored.as_recorded == {"friction_dynamic": 0.25, "slide_integrator": "analytic"}
     result = run_cli("vade-replay", str(old), "--as-recorded", "--json")
     assert result.returncode == 0 and json.loads(result.stdout)["match"] is True
-    refused = run_cli("vade-replay", str(old), "--as-recorded", "--set",
-                      "physics.friction_static=0.5")
-    assert refused.returncode == 2 and "--as-recorded" in refused.stderr
+    # A what-if on the physics it was made with: the recorded scheme stays, the changed
+    # friction departs, and nothing else is named as a changed default.
+    what_if = replay(Recording(old), as_recorded=True,
+                     overrides={"parts.block.constraints.bottom_on_top.friction.dynamic": "0.1"})
+    assert not what_if.match and what_if.physics_changed == {}
+    assert what_if.as_recorded == {"friction_dynamic": 0.25, "slide_integrator": "analytic"}
+    same = replay(Recording(old), as_recorded=True,
+                  overrides={"physics.grab_radius": "0.05"})  # the default: no change
+    assert same.match and same.physics_changed == {}
     # As recorded and still different (the recorded frames edited): exit 1, as any replay.
     edited = tmp_path / "edited.mcap"
     from mcap_edit import nudge_pose

@@ -477,6 +477,8 @@ def apply_overrides(session: Session, overrides: dict[str, str]) -> tuple[Sessio
                     constraint.get("friction", {}).pop(_FRICTION_KEYS[key[8:]], None)
     try:
         changed = parse(json.dumps(doc, indent=2).encode(), session.files, source="--set")
+        # On the physics a recording was made with, where the session came so (``as_made``).
+        changed = replace(changed, physics_defaults=session.physics_defaults)
         changed.build_scene()
     except SessionError as exc:
         raise ConfigError(exc.message, field=exc.field or "--set") from None
@@ -888,14 +890,13 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     run that fails part way keeps the partial file, as ``record`` does, and says so); the
     original file is never modified. With ``as_recorded`` the physics defaults are those
     the recording was made with (``as_made``), not this version's: a replay that proves an
-    older recording still reproduces where a default moved since.
+    older recording still reproduces where a default moved since (with ``overrides``, a
+    what-if of that physics).
     """
     restored = None
     session = recording.session
     if as_recorded:
-        if overrides:
-            raise ConfigError("--as-recorded replays a recording with the physics it was made "
-                              "with; a what-if (--set) is a replay of its own", field="--set")
+        # A what-if (``overrides``) then changes the physics the recording was made with.
         session, restored = as_made(recording)
     session, applied = apply_overrides(session, overrides or {})
     scene = session.build_scene()
