@@ -315,15 +315,24 @@ def test_a_final_pose_off_every_constraint_or_inside_the_base_and_a_floating_par
     assert warnings(doc) == []
     final = doc["parts"][0]["assembly"]["final_pose"]
     final["euler_deg"] = [90, 0, 0]
+    # The golden's final tolerance ignores the turn (180 deg): placed where it passes, then
+    # turned across the pin; with a real angle tolerance, never reached by sliding.
+    (across,) = warnings(doc)
+    assert across.startswith("parts[0].assembly.final_pose: turned 90 deg off bore_on_shaft")
+    doc["parts"][0]["assembly"]["final_tolerance"]["angle_deg"] = 5
     (across,) = warnings(doc)
     assert across.startswith("parts[0].assembly.final_pose: on none of sleeve's constraints "
                              "(nearest bore_on_shaft: ")
     assert "90 deg off" in across
+    doc["parts"][0]["assembly"]["final_tolerance"]["angle_deg"] = 180
     del final["euler_deg"]
-    final["position"] = [0, 0, 0.030]
-    (inside,) = warnings(doc)
-    assert inside.startswith("parts[0].assembly.final_pose: puts sleeve about 5 mm into the base "
-                             "(on bore_on_shaft)")
+    # Into the block by 5 mm, 25 mm, and wholly inside it (nested meshes: fcl sees a gap
+    # between their surfaces, so the depth is found by bringing the part in from outside).
+    for z, depth in ((0.030, 5), (0.010, 25), (0.0, 35)):
+        final["position"] = [0, 0, z]
+        (inside,) = warnings(doc)
+        assert inside.startswith(f"parts[0].assembly.final_pose: puts sleeve about {depth} mm "
+                                 "into the base (on bore_on_shaft)"), inside
     final["position"] = [0, 0, 0.0351]  # a tenth of a millimetre above its seat: no warning
     assert warnings(doc) == []
     constraint = doc["parts"][0]["assembly"]["constraints"][0]

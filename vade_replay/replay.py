@@ -20,6 +20,7 @@ from typing import Callable, Iterable, Iterator
 
 from . import codec, native
 from . import constraints as cn
+from . import spatial as sp
 from .analysis import SessionAnalysis, compare
 from .collision import SKIP_COAXIAL, SKIP_COPLANAR, CollisionWorld
 from .errors import ConfigError, RecordingError, SessionError, VadeError
@@ -608,33 +609,38 @@ def _box_gap(a: tuple[list[float], list[float]], b: tuple[list[float], list[floa
                          for k in range(3)))
 
 
-def _depth_into_base(collision: CollisionWorld, part: str, k: int, mate: cn.Mate,
-                     pose) -> float:
-    """How far the posed part must move along its constraint's axis (or off its plane) to
-    be clear of the base, to ~0.05 mm: 0 when it is already (touching is clear). fcl's
-    distance is 0 for any overlap, so the depth is found by moving it out, both ways along
-    an axis, until the distance opens, then halving."""
+def _depth_into_base(collision: CollisionWorld, part: str, k: int, mate: cn.Mate, pose,
+                     reach: float) -> float:
+    """How far short of ``pose`` the base stops the part coming along its constraint from
+    outside the base: from either end of an axis, from the open side of a plane; 0 if it
+    gets there (touching is there). The part starts beyond everything (``reach``: its own
+    size) and is moved in by its distance to the base each step, which no translation of
+    that length can pass through; within the contact tolerance it has hit. (fcl's distance
+    is 0 for overlapping meshes and a gap between nested ones, so a pose is not judged by
+    its own distance.)"""
     mode = SKIP_COAXIAL if mate.kind == "axis" else SKIP_COPLANAR
     axis = mate.base_dirs[0]
-
-    def clear(s: float, sign: float) -> bool:
-        moved = Pose(tuple(p + sign * s * a for p, a in zip(pose.position, axis)), pose.rotation)
-        return collision.base_distance(part, k, moved, mode) > 0.0
-
-    if clear(0.0, 1.0) or collision.base_distance(part, k, pose, mode) == math.inf:
+    if collision.base_distance(part, k, pose, mode) == math.inf:
         return 0.0
-    depths = []
+    far = collision.base_radius + math.sqrt(sp.dot(pose.position, pose.position)) + reach \
+        + 0.01
+    short = []
     for sign in ((1.0, -1.0) if mate.kind == "axis" else (1.0,)):
-        lo, hi = 0.0, 5e-4
-        while hi < 1.0 and not clear(hi, sign):
-            lo, hi = hi, 2.0 * hi
-        if hi >= 1.0:
-            continue
-        while hi - lo > 5e-5:
-            mid = 0.5 * (lo + hi)
-            lo, hi = (lo, mid) if clear(mid, sign) else (mid, hi)
-        depths.append(hi)
-    return min(depths, default=math.inf)
+        s = far
+        for _ in range(_APPROACH_STEPS):
+            moved = Pose(tuple(p + sign * s * a for p, a in zip(pose.position, axis)),
+                         pose.rotation)
+            d = collision.base_distance(part, k, moved, mode)
+            if d <= _APPROACH_TOL_M or s <= 0.0:
+                break
+            s = max(0.0, s - d)
+        short.append(max(s, 0.0))
+    return min(short)
+
+
+# The approach of ``_depth_into_base``: its contact tolerance (m) and its step budget.
+_APPROACH_TOL_M = 1e-5
+_APPROACH_STEPS = 200
 
 
 def scene_warnings(scene: Scene, collision: CollisionWorld,
@@ -669,28 +675,41 @@ def scene_warnings(scene: Scene, collision: CollisionWorld,
         if assembly is None or assembly.final_pose is None or not assembly.mates:
             continue
         final = assembly.final_pose
+        # With final_tolerance.angle_deg 180 the orientation is not asked for: a part on the
+        # constraint reaches the pose's place whatever its turn (and is then turned to it).
+        any_turn = assembly.final_angle >= math.pi
         offs = []
         for k, mate in enumerate(assembly.mates):
             angle, distance = cn.misalignment(mate, final)
             offs.append((max(_over(distance, mate.distance_tolerance),
-                             _over(angle, mate.angle_tolerance)), k, angle, distance))
+                             0.0 if any_turn else _over(angle, mate.angle_tolerance)),
+                         k, angle, distance))
         worst, k, angle, distance = min(offs)
         mate = assembly.mates[k]
+        if worst <= 1.0 and angle > mate.angle_tolerance:
+            out.append(f"parts[{i}].assembly.final_pose: turned {math.degrees(angle):.3g} deg "
+                       f"off {mate.name} (tolerance {math.degrees(mate.angle_tolerance):.3g} "
+                       f"deg): with final_tolerance.angle_deg 180 the part is placed where it "
+                       "passes the pose's place and then turned to that orientation, off its "
+                       "constraint")
+            continue
         if worst > 1.0:
             out.append(f"parts[{i}].assembly.final_pose: on none of {body.name}'s constraints "
                        f"(nearest {mate.name}: {distance * 1e3:.3g} mm and "
                        f"{math.degrees(angle):.3g} deg off; tolerances "
                        f"{mate.distance_tolerance * 1e3:.3g} mm, "
                        f"{math.degrees(mate.angle_tolerance):.3g} deg): the part cannot slide "
-                       "or turn into it, and reaches it only if let go there")
+                       "or turn into it; it is placed only if let go within final_tolerance "
+                       "of it")
             continue
         snapped = cn.recognise(mate, final) or final
-        depth = _depth_into_base(collision, body.name, k, mate, snapped)
+        depth = _depth_into_base(collision, body.name, k, mate, snapped,
+                                 body.reach_from_origin)
         if depth > _INSIDE_BASE_M:
             out.append(f"parts[{i}].assembly.final_pose: puts {body.name} about "
                        f"{depth * 1e3:.2g} mm into the base (on {mate.name}): the base stops "
-                       "it short of the pose, which it then reaches only within "
-                       "final_tolerance")
+                       "the part that far short of it, so it is placed only if that gap is "
+                       "within final_tolerance")
     # What a resting part can lie on: the environment, a fixed base, another part.
     fixed = [_world_box(b, b.initial_pose) for b in scene.environment]
     if scene.base is not None and scene.base_fixed:
