@@ -163,3 +163,21 @@ def test_unit_and_base_mass_errors_say_what_to_change():
     assert "leave out the base's density" in str(info.value)
     del doc["base"]["density"]
     assert make_session(doc, files).build_scene().base is not None
+
+
+@pytest.mark.parametrize("data, needle", [
+    (b"solid nothing\nendsolid nothing\n", "holds no triangles"),
+    # A binary STL that says it holds 1000 triangles and stops after 10 bytes of them.
+    (b"\x00" * 80 + (1000).to_bytes(4, "little") + b"\x01" * 10, "cannot read mesh")])
+def test_an_unreadable_mesh_is_named_from_the_session_that_names_it(data, needle):
+    """The error names the session file, the field and the mesh as the session writes it
+    (it used to name the mesh alone, as a path relative to the session's folder)."""
+    part = {"name": "p", "shape": {"type": "mesh", "file": "../meshes/p.stl"},
+            "density": 2700, "pose": {"position": [0, 0, 1.0]}}
+    doc = {"format": "vade-session/1", "name": "t", "parts": [part],
+           "tracker": {"duration_s": 0.1, "devices": {"right_hand": [{"t": 0}]}}}
+    with pytest.raises(SessionError) as info:
+        make_session(doc, {"../meshes/p.stl": data}).build_scene()
+    text = str(info.value)
+    assert needle in text and "'../meshes/p.stl'" in text and "parts[0].shape.file" in text
+    assert info.value.file == make_session(doc, {"../meshes/p.stl": data}).source

@@ -358,10 +358,12 @@ def _mesh_from_shape(shape: dict, length_factor: float, files: dict[str, bytes],
         loaded = trimesh.load(io.BytesIO(files[name]), file_type=MESH_TYPES[suffix], force="mesh",
                               process=True)
     except Exception as exc:  # trimesh raises many types for a corrupt file
-        raise SessionError(f"cannot read mesh: {exc}", file=name, field=f"{where}.shape.file") \
-            from None
+        # Named from the session that names it, as every other error of it is.
+        raise SessionError(f"cannot read mesh {name!r}: {exc}", file=file,
+                           field=f"{where}.shape.file") from None
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
-        raise SessionError("mesh file holds no triangles", file=name, field=f"{where}.shape.file")
+        raise SessionError(f"mesh file {name!r} holds no triangles", file=file,
+                           field=f"{where}.shape.file")
     mesh_factor = UNIT_TO_M[shape["units"]] if "units" in shape else f
     loaded.apply_scale(mesh_factor)
     return loaded
