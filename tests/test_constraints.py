@@ -422,3 +422,23 @@ def test_the_shipped_missed_release_golden_is_what_the_readme_says():
     what_if = replay(Recording(path), overrides={key: "10mm"}).to_dict()
     assert what_if["analysis"]["parts"]["sleeve"]["placed_at_s"] is not None
     assert what_if["recorded_analysis"]["parts"]["sleeve"]["placed_at_s"] is None
+
+
+def test_a_part_starting_inside_the_table_is_warned_of_and_one_lying_on_it_is_not():
+    """The peg lying on the table: nothing. Sunk 10 mm into it: let down onto the table from
+    above, it stops 10 mm short of its pose, which is said (it would stay there, half in
+    the table, until taken)."""
+    from vade_replay.collision import CollisionWorld
+    from vade_replay.replay import scene_warnings
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+
+    def warnings():
+        session = session_mod.parse(json.dumps(doc).encode(), {}, source="s.json")
+        scene = session.build_scene()
+        return scene_warnings(scene, CollisionWorld(scene), session.doc)
+
+    assert warnings() == []
+    doc["parts"][0]["pose"]["position"][2] -= 0.01
+    (sunk,) = warnings()
+    assert sunk == ("parts[0].pose: peg starts about 10 mm inside table (let down onto it "
+                    "from above, it stops that far short of its pose)")

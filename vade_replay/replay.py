@@ -643,6 +643,40 @@ _APPROACH_TOL_M = 1e-5
 _APPROACH_STEPS = 200
 
 
+def _overlap(a: tuple[list[float], list[float]], b: tuple[list[float], list[float]]) -> float:
+    """How deep two boxes overlap: the least of their overlaps along the axes (<= 0 apart)."""
+    return min(min(a[1][k], b[1][k]) - max(a[0][k], b[0][k]) for k in range(3))
+
+
+def _diagonal(box: tuple[list[float], list[float]]) -> float:
+    return math.sqrt(sum((box[1][k] - box[0][k]) ** 2 for k in range(3)))
+
+
+def _sunk(collision: CollisionWorld, body, box, environment: list, gravity) -> \
+        tuple[float, int] | None:
+    """How far inside an environment object a resting part starts, and which: the part is
+    let down onto it from above (against gravity, from beyond both boxes, by its distance
+    each step), and stops that far short of its pose. None where its box is not inside an
+    object's box by more than a millimetre (a part lying on the table is not), or where it
+    gets there. (fcl's distance is 0 for touching and overlapping alike.)"""
+    near = tuple(k for k, other in enumerate(environment)
+                 if _overlap(box, other) > _INSIDE_BASE_M)
+    g = math.sqrt(sp.dot(gravity, gravity))
+    if not near or g == 0.0:
+        return None
+    up = sp.scale(gravity, -1.0 / g)
+    pose = body.initial_pose
+    s = 1.5 * (_diagonal(box) + max(_diagonal(environment[k]) for k in near)) + 0.01
+    which = near[0]
+    for _ in range(_APPROACH_STEPS):
+        moved = Pose(tuple(p + s * u for p, u in zip(pose.position, up)), pose.rotation)
+        d, which = collision.distance_to_environment(body.name, moved, near)
+        if d <= _APPROACH_TOL_M or s <= 0.0:
+            break
+        s = max(0.0, s - d)
+    return (s, which) if s > _INSIDE_BASE_M else None
+
+
 def scene_warnings(scene: Scene, collision: CollisionWorld,
                    doc: dict | None = None) -> list[str]:
     """What the built scene shows that its document does not (``vade-record`` prints them
@@ -716,15 +750,28 @@ def scene_warnings(scene: Scene, collision: CollisionWorld,
         fixed.append(_world_box(scene.base, scene.base.initial_pose))
     boxes = {b.name: _world_box(b, b.initial_pose) for b in scene.parts}
     for body in scene.parts:
-        others = fixed + [box for name, box in boxes.items() if name != body.name]
-        if body.initial_mode is not Mode.STATIC or not others:
+        if body.initial_mode is not Mode.STATIC or len(fixed) + len(boxes) < 2:
             continue
-        gap = min(_box_gap(boxes[body.name], box) for box in others)
+        box = boxes[body.name]
+        # Most parts lie on the table: the other parts are looked at only for those that
+        # do not (a 200-part scene asks 200 boxes, not 40,000 pairs).
+        gap = min((_box_gap(box, other) for other in fixed), default=math.inf)
+        if gap > _FLOATING_M:
+            gap = min([gap] + [_box_gap(box, other) for name, other in boxes.items()
+                               if name != body.name])
         if gap > _FLOATING_M:
             i = index[body.name]
             out.append(f"parts[{i}].pose: {body.name} starts at least {gap * 1e3:.3g} mm from "
                        "the table and every other object, and stays there until a hand "
                        "touches it: resting parts do not fall")
+            continue
+        sunk = _sunk(collision, body, boxes[body.name], fixed[:len(scene.environment)],
+                     scene.physics.gravity)
+        if sunk is not None:
+            depth, which = sunk
+            out.append(f"parts[{index[body.name]}].pose: {body.name} starts about "
+                       f"{depth * 1e3:.2g} mm inside {collision.environment_name(which)} "
+                       "(let down onto it from above, it stops that far short of its pose)")
     collision.stats.update(counters)
     return out
 

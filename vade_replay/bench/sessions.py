@@ -81,7 +81,9 @@ def three_part_session(duration_s: float, *, static_parts: int = 0, gear: bool =
         parts.append({"name": f"resting_{i:03d}", "shape": {"type": "box",
                                                            "size": [0.02, 0.02, 0.02]},
                       "density": 1000, "color": [120, 120, 140],
-                      "pose": {"position": [0.2 + 0.03 * col, -0.35 + 0.03 * row,
+                      # (x to 0.57 m: the table ends at 0.6, where the grid's last
+                      # column of 0.2 + ... hung 10 mm off it in mid-air: vade-record says.)
+                      "pose": {"position": [0.15 + 0.03 * col, -0.35 + 0.03 * row,
                                             _TABLE_TOP + 0.01]}})
     devices = {"head": [{"t": 0, "position": [-0.6, 0.1, 1.5], "euler_deg": [0, 25, 0]}],
                "right_hand": _right_hand(duration_s, gear)}
