@@ -14,8 +14,7 @@ from typing import Iterator, TextIO
 
 from vade_replay.errors import ConfigError
 from vade_replay.recording import Recording, ensure_writable
-from vade_replay.replay import (ANALYSIS_COLUMNS, analysis_rows, as_recorded, describe_miss,
-                                replay)
+from vade_replay.replay import ANALYSIS_COLUMNS, analysis_rows, describe_miss, replay
 from vade_replay.tables import FRAME_TABLES, STDOUT, FrameTables, TableError, TableFile
 
 from vade_replay.errors import VadeError
@@ -417,13 +416,7 @@ def _physics_note(changes: dict, path: str, *, what_if: bool = False) -> str:
                        for name, change in changes.items())
     text = f"note: this recording was made with other physics defaults ({listed})"
     if what_if:
-        options, left_out = as_recorded(changes)
-        if options:
-            text += f"; to add them to this what-if: {options}"
-        if left_out:
-            text += (f" ({', '.join(left_out)} not included: give "
-                     + ("them" if len(left_out) > 1 else "it") + " in the session's units)")
-        return text
+        return text + "; to make this what-if of the physics it was made with: add --as-recorded"
     return text + f"; to replay it as it was made: vade-replay {path} --as-recorded"
 
 

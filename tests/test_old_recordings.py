@@ -14,7 +14,7 @@ from pathlib import Path
 from conftest import RECORDINGS, run_cli
 from mcap_edit import copy_recording
 from vade_replay.recording import Recording
-from vade_replay.replay import as_recorded, replay
+from vade_replay.replay import as_made, replay
 
 OLD = Path(__file__).resolve().parent / "data" / "shaft_slide_off_before_analytic4.mcap"
 
@@ -35,17 +35,12 @@ def test_an_old_recording_names_the_changed_defaults_and_replays_with_them():
     assert set(changed) == {"slide_integrator", "slide_onset", "slide_off", "slide_step_s",
                             "final_pose_check", "block_cut", "two_hand_max_mass_kg"}
     # analytic brings its own 1/180 s, so the step need not be set.
-    options, left_out = as_recorded(changed)
-    assert options == ("--set physics.block_cut=both "
-                       "--set physics.final_pose_check=frame_end "
-                       "--set physics.slide_integrator=analytic "
-                       "--set physics.slide_off=frame_end "
-                       "--set physics.slide_onset=sub_step "
-                       "--set physics.two_hand_max_mass_kg=5.0") and left_out == []
-    overrides = dict(item.split("=", 1) for item in options.replace("--set ", "").split())
-    again = replay(Recording(OLD), overrides=overrides)
+    again = replay(Recording(OLD), as_recorded=True)
     assert again.match, again.first_divergence
-    assert again.physics_changed == {}  # what was set on purpose is not a changed default
+    assert again.as_recorded == {"block_cut": "both", "final_pose_check": "frame_end",
+                                 "slide_integrator": "analytic", "slide_off": "frame_end",
+                                 "slide_onset": "sub_step", "two_hand_max_mass_kg": 5.0}
+    assert again.physics_changed == {}  # restored, so no longer a changed default
 
 
 def test_the_cli_says_so_beside_the_divergence(tmp_path):
@@ -94,7 +89,9 @@ def test_a_sub_step_changed_alone_is_set_as_its_bound(tmp_path):
                    edit_metadata=older)
     changed = replay(Recording(old)).physics_changed
     assert changed == {"slide_step_s": {"recorded": 1 / 240, "now": 1 / 60}}
-    assert as_recorded(changed) == (f"--set physics.slide_max_step_s={json.dumps(1 / 240)}", [])
+    session, restored = as_made(Recording(old))
+    assert restored == {"slide_max_step_s": 1 / 240}
+    assert session.build_scene().physics.slide_step_s == 1 / 240
 
 
 def test_an_old_recordings_own_sub_steps_are_the_ones_it_ran_with(tmp_path):
@@ -111,27 +108,44 @@ def test_an_old_recordings_own_sub_steps_are_the_ones_it_ran_with(tmp_path):
         path = tmp_path / f"old_{len(list(tmp_path.iterdir()))}.mcap"
         copy_recording(RECORDINGS / "plane_block_wall.mcap", path, lambda t, i, d: d,
                        edit_metadata=older)
+        shared_paths.append(path)
         return replay(Recording(path)).physics_changed
+    shared_paths: list[Path] = []
     own = as_old({"slide_max_step_s": 0.01})
     assert own["slide_step_s"] == {"recorded": 0.01, "now": 1 / 60}
     shared = as_old({"onbase_max_step_s": 1 / 240})
     assert shared["slide_step_s"]["recorded"] == 1 / 240
     assert shared["turn_step_s"] == {"recorded": 1 / 240, "now": 1 / 120}
-    options, _ = as_recorded(shared)
+    _, restored = as_made(Recording(shared_paths[-1]))
     # The shared bound brings both steps back; nothing more is set.
-    assert "--set physics.onbase_max_step_s=" + json.dumps(1 / 240) in options
-    assert "slide_max_step_s" not in options and "turn_max_step_s" not in options
+    assert restored["onbase_max_step_s"] == 1 / 240
+    assert "slide_max_step_s" not in restored and "turn_max_step_s" not in restored
     plain = as_old({})
     assert plain["slide_step_s"]["recorded"] == 1 / 180 and "turn_step_s" not in plain
 
 
-def test_lengths_and_defaults_left_to_none_are_named_not_set():
-    options, left_out = as_recorded({
-        "contact_tolerance": {"recorded": 2e-4, "now": 1e-4},
-        "slide_max_step_s": {"recorded": None, "now": 0.01},
-        "friction_dynamic": {"recorded": 0.25, "now": 0.2}})
-    assert options == "--set physics.friction_dynamic=0.25"
-    assert left_out == ["contact_tolerance", "slide_max_step_s"]
+def test_lengths_are_restored_in_metres_whatever_the_sessions_unit(tmp_path):
+    """The metadata holds lengths in metres; a session in mm restores them as they were,
+    to the bit (an option in the session's units would have gone through 1e-3 and back)."""
+    from test_session import _scaled
+
+    from vade_replay import session as session_mod
+    from vade_replay.replay import record
+    doc = _scaled(json.loads((RECORDINGS / "drop_on_table.json").read_text()), 1000.0)
+    doc["units"] = "mm"
+    doc["physics"] = {"gravity": [0.0, 0.0, -9800.0]}
+    made = tmp_path / "mm.mcap"
+    record(session_mod.parse(json.dumps(doc).encode(), {}, source="mm.json"), made)
+
+    def older(name: str, values: dict) -> dict:
+        if name == "physics":
+            values = {**values, "contact_tolerance": json.dumps(2e-4)}
+        return values
+    old = tmp_path / "old_mm.mcap"
+    copy_recording(made, old, lambda t, i, d: d, edit_metadata=older)
+    session, restored = as_made(Recording(old))
+    assert restored == {"contact_tolerance": 2e-4}
+    assert session.build_scene().physics.contact_tolerance == 2e-4
 
 
 def test_vade_goldens_check_says_a_default_changed_since_a_golden_was_recorded(tmp_path):

@@ -28,7 +28,7 @@ from .frames import FrameRecord, TrackerFrame
 from .modes import Cause, Mode
 from .recording import (RecordedFrame, Recording, RecordingWriter, complete_output,
                         partial_output, physics_metadata)
-from .scene import (LENGTH_FIELDS, PAPER_DEFAULTS, UNIT_TO_M, Physics, Scene,
+from .scene import (LENGTH_FIELDS, PAPER_DEFAULTS, UNIT_TO_M, Scene,
                     physics_from_doc)
 from .session import Session, parse, strict_json
 from .spatial import Pose
@@ -887,33 +887,6 @@ def physics_changes(recording: Recording, physics, applied: dict) -> dict:
         if recorded[name] != now[name]:
             out[name] = {"recorded": recorded[name], "now": now[name]}
     return out
-
-
-# Left out of as_recorded's options: the metadata holds them in metres, an option is in the
-# session's units.
-_IN_SESSION_UNITS = frozenset(LENGTH_FIELDS) | {"gravity"}
-
-
-def as_recorded(changes: dict) -> tuple[str, list[str]]:
-    """The ``--set`` options that replay a recording with the physics it was made with
-    (``physics_changes``), and the names left out of them: lengths and gravity (in metres
-    in the metadata, in the session's units in an option) and ``null`` (a field left to its
-    default then, which an option cannot say). An effective sub-step is set as the
-    ``*_max_step_s`` that fixes it, unless the recorded integrator brings it by default."""
-    left_out = [name for name, change in changes.items()
-                if name in _IN_SESSION_UNITS or change["recorded"] is None]
-    fields = {name: change["recorded"] for name, change in changes.items()
-              if name not in _DERIVED and name not in left_out}
-    try:
-        brought = Physics(**fields)
-    except (TypeError, ValueError):
-        brought = None
-    sets = dict(fields)
-    for name, change in changes.items():
-        if name in _DERIVED and (brought is None or getattr(brought, name) != change["recorded"]):
-            sets[name.replace("_step_s", "_max_step_s")] = change["recorded"]
-    return (" ".join(f"--set physics.{key}={value if isinstance(value, str) else json.dumps(value)}"
-                     for key, value in sets.items()), left_out)
 
 
 def as_made(recording: Recording) -> tuple[Session, dict | None]:
