@@ -162,6 +162,52 @@ def test_chunks_are_read_as_the_mcap_library_reads_them(golden):
         assert list(_chunk_records(chunk)) == expected
 
 
+def _library_records(stream):
+    """The reference for ``recording._records``: the library's reader, filtered."""
+    from mcap.records import Channel, Chunk, DataEnd, Footer, Message
+    from mcap.stream_reader import StreamReader
+    for record in StreamReader(stream, emit_chunks=True).records:
+        if isinstance(record, (Chunk, Channel, Message, DataEnd, Footer)):
+            yield record
+
+
+@pytest.mark.parametrize("golden", sorted(RECORDINGS.glob("*.mcap"))[:3], ids=lambda p: p.stem)
+def test_records_outside_chunks_are_the_mcap_librarys_less_the_indexes(golden):
+    """``_records`` passes over the message indexes (and the summary's other records)
+    unread; every record it yields is the library's, in the library's order."""
+    from vade_replay.recording import _records
+    with open(golden, "rb") as stream:
+        ours = list(_records(stream))
+    with open(golden, "rb") as stream:
+        assert ours == list(_library_records(stream))
+    assert type(ours[-1]).__name__ == "Footer"
+
+
+def test_a_file_cut_anywhere_reads_as_it_did_through_the_library(tmp_path, monkeypatch):
+    """Cut short at any byte (inside a chunk, a message index, the summary, the footer), a
+    recording gives the frames, the cut-short flag and the error it gave when the mcap
+    library read every record."""
+    from vade_replay import recording as rec_module
+    from vade_replay.errors import RecordingError
+    golden = (RECORDINGS / "drop_on_table.mcap").read_bytes()
+    ours = rec_module._records
+
+    def outcome(path, reader):
+        monkeypatch.setattr(rec_module, "_records", reader)
+        try:
+            recording = Recording(path)
+            frames = [(f.inputs, f.derived) for f in recording.frames()]
+            return frames, recording.truncated, None
+        except RecordingError as exc:
+            return None, None, exc.message
+    cuts = sorted({*range(0, len(golden), len(golden) // 37), *range(len(golden) - 400,
+                                                                     len(golden), 7)})
+    for cut in cuts:
+        path = tmp_path / "cut.mcap"
+        path.write_bytes(golden[:cut])
+        assert outcome(path, ours) == outcome(path, _library_records), cut
+
+
 @pytest.mark.parametrize("chunking, compression", [(False, "NONE"), (True, "NONE")])
 def test_a_recording_written_otherwise_by_another_mcap_writer_replays(tmp_path, chunking,
                                                                      compression):
