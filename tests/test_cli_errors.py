@@ -631,3 +631,32 @@ def test_the_installed_commands_start_in_the_launcher():
         module, _, name = target.partition(":")
         assert module == "vade_replay.cli._launch" and callable(getattr(_launch, name))
         assert command == f"vade-{name}"
+
+
+def test_two_recordings_to_one_output_at_once_do_not_mix(tmp_path):
+    """A second ``vade-record -o X`` while one is writing ``X.partial`` is refused (exit 2,
+    naming the file): it used to truncate the first's file and interleave its records.
+    The first run's recording is whole, and lands at X."""
+    from vade_replay.recording import RecordingWriter, Recording
+    from vade_replay.replay import simulate
+    from vade_replay.session import load
+    session = load(RECORDINGS / "drop_on_table.json")
+    scene = session.build_scene()
+    out = tmp_path / "run.mcap"
+    partial = tmp_path / "run.mcap.partial"
+    first = RecordingWriter(partial, session, scene)
+    frames = list(simulate(scene, session.tracker_frames()))
+    for record in frames[:50]:
+        first.write_frame(record)
+    second = run_cli("vade-record", str(RECORDINGS / "drop_on_table.json"), "-o", str(out),
+                     process=True)
+    _assert_clean_error(second, str(partial), "another run is writing")
+    for record in frames[50:]:
+        first.write_frame(record)
+    first.close(complete_as=out)
+    assert not partial.exists()
+    recording = Recording(out)
+    assert len(list(recording.frames())) == len(frames) and not recording.truncated
+    # Once the first is done, the same output is free again.
+    assert run_cli("vade-record", str(RECORDINGS / "drop_on_table.json"), "-o", str(out),
+                   process=True).returncode == 0

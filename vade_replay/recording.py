@@ -22,6 +22,11 @@ from io import BytesIO
 from pathlib import Path
 from typing import Iterator
 
+try:
+    import fcntl
+except ImportError:  # Windows: outputs are not locked
+    fcntl = None  # type: ignore[assignment]
+
 from mcap.data_stream import ReadDataStream
 from mcap.exceptions import EndOfFile, McapError, RecordLengthLimitExceeded
 from mcap.opcode import Opcode
@@ -223,6 +228,33 @@ def complete_output(partial: Path, target: Path | None) -> None:
                              f"written is in {partial}", file=str(target)) from None
 
 
+def _open_alone(path: Path):
+    """``open(path, "wb")``, but a regular file is first locked (fcntl), without truncating
+    it: a second run writing the same ``.partial`` (two ``vade-record -o X`` at once) is
+    refused, naming the file, instead of each truncating and interleaving the other's
+    records. A pipe or device is not locked; nor is anything where fcntl is missing
+    (Windows). The lock goes with the file's closing."""
+    try:
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT, 0o666)
+    except OSError as exc:
+        raise RecordingError(f"cannot write here: {exc.strerror or exc}",
+                             file=str(path)) from None
+    try:
+        if fcntl is not None and stat.S_ISREG(os.fstat(fd).st_mode):
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                raise RecordingError(
+                    "another run is writing this file now (two runs with the same output?); "
+                    "wait for it to finish or give another output",
+                    file=str(path)) from None
+            os.ftruncate(fd, 0)
+        return open(fd, "wb", closefd=True)
+    except BaseException:
+        os.close(fd)
+        raise
+
+
 class RecordingWriter:
     """Writes one session: attachments and metadata first, then frame after frame."""
 
@@ -230,11 +262,7 @@ class RecordingWriter:
                  extra_metadata: dict[str, str] | None = None,
                  parts_encoding: str = codec.PARTS_CHANGED) -> None:
         self.path = Path(path)
-        try:
-            self._stream = open(self.path, "wb")
-        except OSError as exc:
-            raise RecordingError(f"cannot write here: {exc.strerror or exc}",
-                                 file=str(self.path)) from None
+        self._stream = _open_alone(self.path)
         try:
             self._stream.tell()  # the MCAP writer keeps offsets: a pipe has none
         except OSError:
@@ -289,23 +317,29 @@ class RecordingWriter:
             self._writer.flush()
             self._last_flush_ns = t
 
-    def close(self) -> None:
-        """Write the summary and close; a closed file is complete and indexed."""
+    def close(self, *, complete_as: Path | None = None) -> None:
+        """Write the summary and close; a closed file is complete and indexed. With
+        ``complete_as`` (``partial_output``'s target) it is moved there first, while it is
+        still open and locked: no other run can begin writing the partial name between."""
         if self._stream.closed:
             return
         try:
-            self._writer.finish()
-            self._stream.flush()
             try:
-                os.fsync(self._stream.fileno())
+                self._writer.finish()
+                self._stream.flush()
+                try:
+                    os.fsync(self._stream.fileno())
+                except OSError as exc:
+                    if exc.errno not in (errno.EINVAL, errno.EROFS):  # a pipe, a device
+                        raise
             except OSError as exc:
-                if exc.errno not in (errno.EINVAL, errno.EROFS):  # a pipe, a device
-                    raise
+                raise RecordingError(f"cannot finish writing it: {exc.strerror or exc}",
+                                     file=str(self.path)) from None
+            if fcntl is None:  # not locked; and Windows cannot move an open file
+                self._stream.close()
+            complete_output(self.path, complete_as)
+        finally:
             self._stream.close()
-        except OSError as exc:
-            self._stream.close()
-            raise RecordingError(f"cannot finish writing it: {exc.strerror or exc}",
-                                 file=str(self.path)) from None
 
     def __enter__(self) -> "RecordingWriter":
         return self

@@ -26,7 +26,7 @@ from .collision import SKIP_COAXIAL, SKIP_COPLANAR, CollisionWorld
 from .errors import ConfigError, RecordingError, SessionError, VadeError
 from .frames import FrameRecord, TrackerFrame
 from .modes import Cause, Mode
-from .recording import (RecordedFrame, Recording, RecordingWriter, complete_output,
+from .recording import (RecordedFrame, Recording, RecordingWriter,
                         partial_output, physics_metadata)
 from .scene import (LENGTH_FIELDS, PAPER_DEFAULTS, UNIT_TO_M, Scene,
                     physics_from_doc)
@@ -534,8 +534,7 @@ def record(session: Session, out: str | Path, *,
         if isinstance(exc, KeyboardInterrupt) and writer.frames:
             exc.add_note(_kept(writer.frames, partial))
         raise
-    writer.close()
-    complete_output(partial, target)
+    writer.close(complete_as=target)
     summary.counters = dict(collision.stats)
     return summary
 
@@ -1030,12 +1029,12 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
                 exc.add_note(_kept(writer.frames, partial))
         raise
     if writer and partial is not None:
-        writer.close()
         if summary.frames == 0:
+            writer.close()
             if target is not None:
                 partial.unlink(missing_ok=True)  # nothing was written: leave nothing behind
         else:
-            complete_output(partial, target)
+            writer.close(complete_as=target)
     if summary.frames == 0:
         raise VadeError("recording holds no frames", file=str(recording.path))
     summary.match = summary.first_divergence is None
