@@ -442,3 +442,34 @@ def test_a_part_starting_inside_the_table_is_warned_of_and_one_lying_on_it_is_no
     (sunk,) = warnings()
     assert sunk == ("parts[0].pose: peg starts about 10 mm inside table (let down onto it "
                     "from above, it stops that far short of its pose)")
+
+
+def test_parts_starting_inside_one_another_are_warned_of_and_parts_touching_are_not():
+    """Parts do not collide with each other, so two that start overlapping stay so: said,
+    with the depth (the first part brought in from beyond the other, away from it, stops
+    that far short). A cap lying on the peg's top, or against its side, touches it: nothing.
+    A cube wholly inside the peg (fcl sees a gap between nested meshes) is said too."""
+    from vade_replay.collision import CollisionWorld
+    from vade_replay.replay import scene_warnings
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+    cap = {"name": "cap", "shape": {"type": "box", "size": [0.02, 0.02, 0.02]},
+           "density": 2700, "pose": {"position": [0.0, 0.0, 0.83]}}  # on the peg's top
+    doc["parts"].append(cap)
+
+    def warnings():
+        session = session_mod.parse(json.dumps(doc).encode(), {}, source="s.json")
+        scene = session.build_scene()
+        return [w for w in scene_warnings(scene, CollisionWorld(scene), session.doc)
+                if "into each other" in w]
+
+    assert warnings() == []
+    cap["pose"]["position"] = [0.03, 0.0, 0.80]  # against the peg's side
+    assert warnings() == []
+    cap["pose"]["position"] = [0.0, 0.0, 0.825]
+    (overlap,) = warnings()
+    assert overlap.startswith("parts[0].pose: peg and cap (parts[1]) start about 5 mm into "
+                              "each other; parts do not collide with each other")
+    cap["pose"]["position"] = [0.0, 0.0, 0.79]
+    cap["shape"]["size"] = [0.004, 0.004, 0.004]  # inside the peg, touching nothing
+    (nested,) = warnings()
+    assert nested.startswith("parts[0].pose: peg and cap (parts[1]) start about")

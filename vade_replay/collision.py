@@ -305,6 +305,15 @@ class CollisionWorld:
     def environment_name(self, index: int) -> str:
         return self._fixed[index].name
 
+    def distance_between_parts(self, a: str, pose_a: sp.Pose, b: str,
+                               pose_b: sp.Pose) -> float:
+        """Distance between two posed parts (0 touching or overlapping, a gap between
+        nested meshes). Parts do not collide with each other in the step: this is for the
+        checks of a scene at its start (``replay.scene_warnings``)."""
+        self.stats["fcl_distance_queries"] += 1
+        return _distance(fcl.CollisionObject(self._model(a), _transform(pose_a)),
+                         fcl.CollisionObject(self._model(b), _transform(pose_b)))
+
     def distance_to_environment(self, part: str, pose: sp.Pose,
                                 candidates: tuple[int, ...]) -> tuple[float, int]:
         """Smallest distance from the posed part to the candidates (<= 0 when touching)."""

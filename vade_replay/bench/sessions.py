@@ -65,7 +65,11 @@ def _right_hand(duration_s: float, with_gear: bool) -> list[dict]:
 
 def three_part_session(duration_s: float, *, static_parts: int = 0, gear: bool = True,
                        box: bool = True, name: str | None = None) -> dict:
-    """A session document (see ``schemas/session.schema.json``) lasting ``duration_s``."""
+    """A session document (see ``schemas/session.schema.json``) lasting ``duration_s``.
+    Resting parts need ``gear=False``: the grid lies where the gear starts (vade-record
+    says the gear and eight of them start up to 31 mm into each other)."""
+    if static_parts and gear:
+        raise ValueError("resting parts lie where the gear starts: pass gear=False")
     parts = [{"name": "cylinder", "shape": {"type": "cylinder", "radius": 0.02, "height": 0.08},
               "density": 2700, "color": [220, 90, 60],
               "pose": {"position": [_CYL_AT[0], _CYL_AT[1], _TABLE_TOP + 0.04]}}]
