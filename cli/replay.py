@@ -37,7 +37,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--set", action="append", default=[], metavar="physics.NAME=VALUE",
                    help="what-if: replay as if the session's physics said NAME: VALUE; also "
                         "tools.TOOL.FIELD=VALUE, parts.PART.constraints.NAME.FIELD=VALUE "
-                        "(tolerance.distance, friction.static, ...), parts.PART.density=VALUE "
+                        "(tolerance.distance, friction.static, ...), parts.PART.mass=KG, "
+                        "parts.PART.density=VALUE "
                         "(repeatable; JSON value in the session's units, or a length with "
                         "its unit: 15mm, 0.6in, 0.015m)")
     p.add_argument("--as-recorded", action="store_true",

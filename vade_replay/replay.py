@@ -18,6 +18,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Iterable, Iterator
 
+import numpy as np
+
 from . import codec, native
 from . import constraints as cn
 from . import spatial as sp
@@ -30,7 +32,7 @@ from .recording import (RecordedFrame, Recording, RecordingWriter,
                         partial_output, physics_metadata)
 from .scene import (LENGTH_FIELDS, PAPER_DEFAULTS, UNIT_TO_M, Scene,
                     physics_from_doc)
-from .session import Session, parse, strict_json
+from .session import _DENSITY_RANGE, Session, parse, strict_json
 from .spatial import Pose
 from .step import Stepper
 
@@ -366,11 +368,12 @@ _FINAL_FIELDS = ("final_tolerance.distance", "final_tolerance.angle_deg")
 
 def _constraint_target(doc: dict, key: str) -> dict:
     """``parts.PART.constraints.NAME.tolerance.distance`` (or another of
-    ``_CONSTRAINT_FIELDS``), ``parts.PART.final_tolerance.distance``, ``parts.PART.density``
-    (would a heavier part still be lifted?): the block it changes. Names may hold dots: the
+    ``_CONSTRAINT_FIELDS``), ``parts.PART.final_tolerance.distance``, ``parts.PART.mass``
+    (kg) or ``parts.PART.density`` (would a heavier part still be lifted?): the block it
+    changes. Names may hold dots: the
     session's own names are matched, not the key split at every dot."""
     usage = ("a part's field is parts.PART.constraints.NAME.FIELD=VALUE (FIELD: "
-             f"{', '.join(_CONSTRAINT_FIELDS)}) or parts.PART.FIELD=VALUE (FIELD: density, "
+             f"{', '.join(_CONSTRAINT_FIELDS)}) or parts.PART.FIELD=VALUE (FIELD: mass, density, "
              f"{', '.join(_FINAL_FIELDS)})")
     rest = key[6:]
     parts = {str(p.get("name")): p for p in doc.get("parts", [])}
@@ -381,10 +384,15 @@ def _constraint_target(doc: dict, key: str) -> dict:
                           f"{', '.join(sorted(parts)) or 'none'}); {usage}", field=key)
     name = max(named, key=len)
     part, field = parts[name], rest[len(name) + 1:]
+    if field == "mass":
+        return part  # kg: any part's, its density or mass_properties spreading it
     if field == "density":
+        if "mass" in part:
+            raise ConfigError(f"part {name!r} gives its mass (mass), which its density "
+                              f"only spreads; change parts.{name}.mass", field=key)
         if "density" not in part or "mass_properties" in part:
             raise ConfigError(f"part {name!r} has its mass from mass_properties, not a "
-                              "density", field=key)
+                              f"density; change parts.{name}.mass (kg)", field=key)
         return part
     assembly = part.get("assembly")
     if assembly is None:
@@ -676,6 +684,12 @@ def _sunk(collision: CollisionWorld, body, box, environment: list, gravity) -> \
     return (s, which) if s > _INSIDE_BASE_M else None
 
 
+def _volume(vertices, faces) -> float:
+    """The volume a closed mesh encloses (m^3): its signed tetrahedra from the origin."""
+    v = vertices[faces]
+    return float(np.einsum("ij,ij->i", v[:, 0], np.cross(v[:, 1], v[:, 2])).sum()) / 6.0
+
+
 def _overlapping_pairs(boxes: list[tuple[list[float], list[float]]]) -> list[tuple[int, int]]:
     """Pairs of boxes overlapping by more than a millimetre, by a sweep along x (a scene of
     200 parts lying apart asks a few hundred pairs, not 20,000)."""
@@ -806,6 +820,20 @@ def scene_warnings(scene: Scene, collision: CollisionWorld,
             out.append(f"parts[{index[body.name]}].pose: {body.name} starts about "
                        f"{depth * 1e3:.2g} mm inside {collision.environment_name(which)} "
                        "(let down onto it from above, it stops that far short of its pose)")
+    # A mass given alone spreads it at a uniform density: say where that is no solid's
+    # (grams written for kilograms, most likely).
+    for body in scene.parts:
+        part_doc = ((doc or {}).get("parts") or [])[index[body.name]] \
+            if index[body.name] < len((doc or {}).get("parts") or []) else {}
+        if "mass" in part_doc and "density" not in part_doc \
+                and "mass_properties" not in part_doc:
+            volume = _volume(body.vertices, body.faces)
+            lo, hi = _DENSITY_RANGE
+            if volume > 0.0 and not lo <= body.mass_kg / volume <= hi:
+                out.append(f"parts[{index[body.name]}].mass: {body.mass_kg:g} kg in "
+                           f"{volume * 1e6:.3g} cm^3 is {body.mass_kg / volume:.3g} kg/m^3, "
+                           "no solid's (steel is about 7850); masses are in kg whatever "
+                           "the session's units")
     # Parts that start inside one another stay so: parts do not collide with each other.
     parts = list(scene.parts)
     part_boxes = [boxes[b.name] for b in parts]

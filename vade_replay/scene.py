@@ -371,6 +371,21 @@ def _mesh_from_shape(shape: dict, length_factor: float, files: dict[str, bytes],
 
 def _mass_properties(doc: dict, mesh: trimesh.Trimesh, length_factor: float,
                      files: dict[str, bytes], *, where: str, file: str) -> MassProperties:
+    """A body's mass properties: from its ``density`` or ``mass_properties``, scaled to its
+    ``mass`` (kg) where a part gives one (with neither, a uniform density)."""
+    props = _spread(doc, mesh, length_factor, files, where=where, file=file)
+    if "mass" not in doc:
+        return props
+    mass = float(doc["mass"])
+    k = mass / props.mass_kg
+    return check(MassProperties(mass, props.center_of_mass,
+                                tuple(tuple(x * k for x in row)  # type: ignore[misc]
+                                      for row in props.inertia_cm)),
+                 file=file, field=f"{where}.mass")
+
+
+def _spread(doc: dict, mesh: trimesh.Trimesh, length_factor: float,
+            files: dict[str, bytes], *, where: str, file: str) -> MassProperties:
     given = doc.get("mass_properties")
     if given and "file" in given:
         name = given["file"]
@@ -389,8 +404,9 @@ def _mass_properties(doc: dict, mesh: trimesh.Trimesh, length_factor: float,
             float(given["mass"]), _vec(given["center_of_mass"], f),
             tuple(_vec(row, f * f) for row in given["inertia"]))  # type: ignore[arg-type]
         return check(props, file=file, field=f"{where}.mass_properties")
-    if "density" not in doc:
-        raise SessionError("give either density or mass_properties", file=file, field=where)
+    if "density" not in doc and "mass" not in doc:
+        raise SessionError("give its density, its mass or its mass_properties", file=file,
+                           field=where)
     if not mesh.is_watertight:
         raise SessionError(
             "mesh is not watertight, so its volume and inertia are undefined; give "
@@ -408,7 +424,7 @@ def _mass_properties(doc: dict, mesh: trimesh.Trimesh, length_factor: float,
     # copy of the mesh with its density set, without the copy (and its cache's hashing).
     mass = trimesh.triangles.mass_properties(triangles=mesh.triangles,
                                              crosses=mesh.triangles_cross,
-                                             density=float(doc["density"]))
+                                             density=float(doc.get("density", 1.0)))
     if float(mass.volume) < 0.0:
         raise SessionError(
             "the mesh's faces all point inward (its volume comes out negative): its normals "
@@ -416,7 +432,8 @@ def _mass_properties(doc: dict, mesh: trimesh.Trimesh, length_factor: float,
             file=file, field=f"{where}.shape")
     props = MassProperties(float(mass.mass), _vec(mass.center_mass),
                            tuple(_vec(row) for row in mass.inertia))  # type: ignore[arg-type, union-attr]
-    return check(props, file=file, field=f"{where}.density")
+    return check(props, file=file, field=f"{where}.density" if "density" in doc
+                 else f"{where}.mass")
 
 
 def _principal(props: MassProperties) -> tuple[sp.Vec3, sp.Quat]:

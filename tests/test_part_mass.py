@@ -1,0 +1,117 @@
+"""A part's ``mass`` (kg): its density or mass_properties then only spread it. Held to the
+closed form of a box and to the same part's density-made properties; a what-if
+``--set parts.PART.mass`` for any part, also one whose mass comes from a CAD report."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from conftest import RECORDINGS, run_cli
+from vade_replay import session as session_mod
+from vade_replay.recording import Recording
+from vade_replay.replay import record, replay
+
+
+def _scene(doc):
+    return session_mod.parse(json.dumps(doc).encode(), {}, source="s.json").build_scene()
+
+
+def _peg(doc):
+    return next(p for p in _scene(doc).parts if p.name == "peg")
+
+
+def _doc():
+    return json.loads((RECORDINGS / "drop_on_table.json").read_text())
+
+
+def test_a_box_given_only_its_mass_has_the_closed_form_inertia():
+    """Peg 0.04 x 0.04 x 0.08 m, 0.5 kg, no density: I = m (b^2 + c^2) / 12 about each axis
+    through the centre (to 1e-12 relative; trimesh sums the box's triangles)."""
+    doc = _doc()
+    peg = doc["parts"][0]
+    del peg["density"]
+    peg["mass"] = 0.5
+    body = _peg(doc)
+    assert body.mass_kg == 0.5
+    a, b, c = 0.04, 0.04, 0.08
+    expected = (0.5 * (b * b + c * c) / 12, 0.5 * (a * a + c * c) / 12, 0.5 * (a * a + b * b) / 12)
+    for k in range(3):
+        assert body.inertia_cm[k][k] == pytest.approx(expected[k], rel=1e-12)
+    assert body.center_of_mass == pytest.approx((0.0, 0.0, 0.0), abs=1e-15)
+
+
+def test_a_mass_scales_what_the_density_gives_and_keeps_its_centre():
+    doc = _doc()
+    made = _peg(doc)  # 2700 kg/m^3: 0.3456 kg
+    doc["parts"][0]["mass"] = 2.0
+    scaled = _peg(doc)
+    k = 2.0 / made.mass_kg
+    assert scaled.mass_kg == 2.0 and scaled.center_of_mass == made.center_of_mass
+    for row, base in zip(scaled.inertia_cm, made.inertia_cm):
+        assert row == pytest.approx([x * k for x in base], rel=1e-14)
+
+
+def test_a_mass_scales_the_numbers_of_mass_properties():
+    doc = _doc()
+    peg = doc["parts"][0]
+    del peg["density"]
+    peg["mass_properties"] = {"mass": 1.0, "center_of_mass": [0.0, 0.0, 0.01],
+                              "inertia": [[2e-4, 0, 0], [0, 3e-4, 0], [0, 0, 4e-4]]}
+    peg["mass"] = 3.0
+    body = _peg(doc)
+    assert body.mass_kg == 3.0 and body.center_of_mass == pytest.approx((0.0, 0.0, 0.01))
+    assert sorted(body.principal_moments) == pytest.approx([6e-4, 9e-4, 12e-4], rel=1e-12)
+
+
+def test_a_part_with_neither_density_nor_mass_is_refused_naming_both():
+    doc = _doc()
+    del doc["parts"][0]["density"]
+    with pytest.raises(session_mod.SessionError, match="its density, its mass or its "
+                                                       "mass_properties"):
+        _scene(doc)
+
+
+def test_a_mass_in_grams_is_warned_of_by_the_density_it_makes(tmp_path):
+    """250 written for 250 g: 250 kg in the peg's 128 cm^3 is no solid's density."""
+    doc = _doc()
+    del doc["parts"][0]["density"]
+    doc["parts"][0]["mass"] = 250
+    path = tmp_path / "grams.json"
+    path.write_text(json.dumps(doc))
+    summary = record(session_mod.load(path), tmp_path / "grams.mcap")
+    (warning,) = [w for w in summary.warnings if ".mass" in w]
+    assert warning.startswith("parts[0].mass: 250 kg in 128 cm^3 is 1.95e+06 kg/m^3")
+    doc["parts"][0]["mass"] = 0.25
+    path.write_text(json.dumps(doc))
+    assert not [w for w in record(session_mod.load(path), tmp_path / "g.mcap").warnings
+                if ".mass" in w]
+
+
+def test_a_what_if_of_a_parts_mass_asks_would_it_still_be_lifted(tmp_path):
+    """The recorded 0.35 kg peg made 25 kg (over both hands' 15 kg): refused at the grab.
+    A part whose mass comes from mass_properties takes the same what-if (it could not be
+    given a density); one given a mass refuses a density what-if, naming the key to use."""
+    summary = replay(Recording(RECORDINGS / "drop_on_table.mcap"),
+                     overrides={"parts.peg.mass": "25"}).to_dict()
+    assert summary["analysis"]["refused_grabs"] == {"too_heavy_for_two_hands": 1}
+    assert summary["masses_kg"] == {"peg": 25.0}
+    doc = _doc()
+    peg = doc["parts"][0]
+    del peg["density"]
+    peg["mass_properties"] = {"mass": 0.35, "center_of_mass": [0, 0, 0],
+                              "inertia": [[2e-4, 0, 0], [0, 2e-4, 0], [0, 0, 1e-4]]}
+    path = tmp_path / "cad.json"
+    path.write_text(json.dumps(doc))
+    out = tmp_path / "cad.mcap"
+    record(session_mod.load(path), out)
+    heavy = replay(Recording(out), overrides={"parts.peg.mass": "25"}).to_dict()
+    assert heavy["analysis"]["refused_grabs"] == {"too_heavy_for_two_hands": 1}
+    result = run_cli("vade-replay", str(out), "--set", "parts.peg.density=5000")
+    assert result.returncode == 2 and "change parts.peg.mass (kg)" in result.stderr
+    peg["mass"] = 0.35
+    path.write_text(json.dumps(doc))
+    record(session_mod.load(path), out)
+    result = run_cli("vade-replay", str(out), "--set", "parts.peg.density=5000")
+    assert result.returncode == 2 and "change parts.peg.mass" in result.stderr
