@@ -6,6 +6,7 @@ import json
 import os
 import select
 import sys
+from contextlib import contextmanager
 from typing import Callable
 
 from vade_replay.errors import VadeError
@@ -14,11 +15,68 @@ EXIT_OK, EXIT_DIVERGED, EXIT_UNUSABLE = 0, 1, 2
 EXIT_PIPE_CLOSED = 141
 
 
+class StdoutOrNothing:
+    """Standard output until its reader goes (``| head``), then nothing: for a run that
+    also writes files (tables, ``-o``, ``--rerun``), which it then goes on to write. The
+    run's ``run()`` still ends with 141 and a line saying so."""
+
+    gone = False  # (set on the class: ``run`` asks after the command has put it back)
+
+    def __init__(self, stream) -> None:
+        self._stream = stream
+
+    def write(self, text: str) -> int:
+        try:
+            return self._stream.write(text)
+        except BrokenPipeError:
+            self._discard()
+            return len(text)
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()
+        except BrokenPipeError:
+            self._discard()
+
+    def _discard(self) -> None:
+        if closed_pipe(self._stream):
+            StdoutOrNothing.gone = True
+            try:
+                os.dup2(os.open(os.devnull, os.O_WRONLY), self._stream.fileno())
+            except (OSError, ValueError):
+                pass
+            return
+        raise BrokenPipeError  # not standard output's own reader: as without this
+
+    def __getattr__(self, name: str):
+        return getattr(self._stream, name)
+
+
+@contextmanager
+def going_on_without_stdout():
+    """Within it, standard output is ``StdoutOrNothing``: for a command with files to write
+    (what is still buffered is flushed through it before it is put back)."""
+    saved = sys.stdout
+    sys.stdout = through = StdoutOrNothing(saved)
+    try:
+        yield
+    finally:
+        try:
+            through.flush()
+        finally:
+            sys.stdout = saved
+
+
 def run(main: Callable[[list[str] | None], int], argv: list[str] | None = None) -> int:
     """Call ``main``; turn a ``VadeError`` into one line on stderr and exit code 2."""
+    StdoutOrNothing.gone = False
     try:
         code = main(argv)
         sys.stdout.flush()  # inside: what is still buffered may meet a reader gone
+        if StdoutOrNothing.gone:
+            print("standard output was closed by its reader; the run went on without it and "
+                  "wrote its files", file=sys.stderr)
+            return EXIT_PIPE_CLOSED
         return code
     except BrokenPipeError:
         if closed_pipe(sys.stdout):

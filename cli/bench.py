@@ -16,7 +16,7 @@ from pathlib import Path
 
 from vade_replay.errors import ConfigError
 
-from ._common import EXIT_OK, run
+from ._common import EXIT_OK, going_on_without_stdout, run
 
 ROW_COLS = ["motion", "integrator", "rate_hz", "substeps", "ms_per_sim_s", "cpu_ms_per_sim_s",
             "error", "unit", "pareto"]
@@ -129,10 +129,13 @@ def main(argv: list[str] | None = None) -> int:
     if not out.is_dir():
         raise ConfigError("is not a folder", file=str(out), field="-o")
     command = shlex.join(["vade-bench", *(sys.argv[1:] if argv is None else argv)])
-    if not args.replay:
-        _physics(args, out, command)
-    if args.replay or args.all:
-        _replay(args, out, command)
+    # Its files are written after its tables are printed: a reader of standard output
+    # going away (``| head``) does not lose minutes of measurement (``run`` exits 141).
+    with going_on_without_stdout():
+        if not args.replay:
+            _physics(args, out, command)
+        if args.replay or args.all:
+            _replay(args, out, command)
     return EXIT_OK
 
 

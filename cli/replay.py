@@ -19,8 +19,8 @@ from vade_replay.tables import FRAME_TABLES, STDOUT, FrameTables, TableError, Ta
 
 from vade_replay.errors import VadeError
 
-from ._common import (EXIT_DIVERGED, EXIT_OK, EXIT_UNUSABLE, Progress, closed_pipe, print_json,
-                      run)
+from ._common import (EXIT_DIVERGED, EXIT_OK, EXIT_UNUSABLE, Progress, closed_pipe,
+                      going_on_without_stdout, print_json, run)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -84,6 +84,16 @@ def main(argv: list[str] | None = None) -> int:
         raise ConfigError(f"--jobs takes a count of processes (0: one per CPU), got "
                           f"{args.jobs}", field="--jobs")
     _check_output_paths(args)
+    if args.output or args.rerun or any(not _is_stdout(path)
+                                        for _, path in _table_options(args)):
+        # Files to write: a reader of standard output going away (``| head``) does not
+        # stop the run, which goes on without it (``run`` still exits 141).
+        with going_on_without_stdout():
+            return _main(args, overrides)
+    return _main(args, overrides)
+
+
+def _main(args, overrides: dict[str, str]) -> int:
     global _lines
     _lines = sys.stdout
     if any(_is_stdout(path) for _, path in _table_options(args)):

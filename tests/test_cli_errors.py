@@ -559,6 +559,31 @@ def test_standard_output_closed_early_ends_quietly():
     assert "stopped: standard output was closed" in err
 
 
+def test_a_run_with_files_to_write_goes_on_when_standard_output_closes(tmp_path):
+    """``vade-replay study/*.mcap --poses - --csv study.csv | head -1``: the pose rows on
+    standard output are cut off, but the study's table is a file, so the run goes on
+    without standard output and writes it whole (a row per recording); still 141, and a
+    line saying the files were written. (Without a file to write it stops at once.)"""
+    import csv
+    import subprocess
+    import sys
+
+    from conftest import COMMANDS, ROOT
+    files = [str(p) for p in sorted(RECORDINGS.glob("*.mcap"))]
+    table = tmp_path / "study.csv"
+    proc = subprocess.Popen([sys.executable, "-m", COMMANDS["vade-replay"], *files, "--poses",
+                             "-", "--csv", str(table)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, cwd=ROOT)
+    first = proc.stdout.readline()
+    proc.stdout.close()
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=300) == 141 and first
+    assert "Traceback" not in err and "error:" not in err
+    assert "the run went on without it and wrote its files" in err
+    rows = list(csv.DictReader(table.open(encoding="utf-8")))
+    assert len(rows) == len(files) and all(r["match"] == "True" for r in rows)
+
+
 def test_output_still_buffered_when_the_reader_went_ends_quietly_too(tmp_path):
     """Without PYTHONUNBUFFERED, a batch's --json is written when the run ends: far more
     than a pipe holds, so the reader is gone before it is all written. Not 'Exception ignored'
