@@ -307,3 +307,51 @@ def test_a_metre_session_read_as_mm_is_named_even_where_its_meshes_collapse():
     doc["units"] = "mm"
     with pytest.raises(SessionError, match="mm across: are the session's units right"):
         make_session(doc).build_scene()
+
+
+def test_one_keyframe_in_metres_among_millimetres_is_warned_of():
+    """A mm session whose right hand has one keyframe written in metres: the hand would
+    dive to the origin and back. Named with its time; the others are not."""
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+    doc["units"] = "mm"
+    for frames in doc["tracker"]["devices"].values():
+        for kf in frames:
+            if "position" in kf:
+                kf["position"] = [1000.0 * c for c in kf["position"]]
+    for part in doc["parts"]:
+        part["pose"]["position"] = [1000.0 * c for c in part["pose"]["position"]]
+    assert make_session(doc).warnings() == []
+    hand = [kf for kf in doc["tracker"]["devices"]["right_hand"] if "position" in kf]
+    hand[1]["position"] = [c / 1000.0 for c in hand[1]["position"]]
+    (warning,) = make_session(doc).warnings()
+    assert warning.startswith(f"tracker.devices.right_hand: the keyframe at t = "
+                              f"{hand[1]['t']:g} s is ")
+    assert "written in metres?" in warning
+
+
+def _record_csv(tmp_path, csv_text: str, csv_units: str = "mm"):
+    from vade_replay.replay import record
+    doc = _csv_doc()
+    doc["tracker"]["csv_units"] = csv_units
+    session = make_session(doc, {"log.csv": csv_text.encode()})
+    return record(session, tmp_path / "csv.mcap").warnings
+
+
+def test_a_csv_log_in_another_length_unit_or_jumping_is_warned_of_when_recorded(tmp_path):
+    """The stream as recorded: the log in metres read as mm (every position within 3 mm
+    of the origin), in mm read as metres (the hand 1.1 km away), and a hand jumping
+    0.9 m in a tenth of a second (9 m/s is a hand; 0.9 m in 0.01 s is not)."""
+    assert _record_csv(tmp_path, CSV) == []
+    in_metres = CSV.replace("-600,0,1600", "-0.6,0,1.6").replace(",0,0,790,", ",0,0,0.79,") \
+        .replace(",0,0,900,", ",0,0,0.9,").replace(",0,0,1000,", ",0,0,1.0,") \
+        .replace(",0,0,1100,", ",0,0,1.1,")
+    (warning,) = _record_csv(tmp_path, in_metres)
+    assert warning == ("tracker.csv: every position of the log is within 3 mm of the origin: "
+                       "written in metres and read as mm (tracker.csv_units)?")
+    far = _record_csv(tmp_path, CSV, csv_units="m")
+    assert any(w.startswith("tracker.csv: head is 1.71e+03 m from the origin at frame 0, "
+                            "farther than any room") for w in far)
+    jump = CSV.replace("0.400,right_hand,0,0,1100", "0.310,right_hand,0,0,100")
+    (warning,) = _record_csv(tmp_path, jump)
+    assert warning.startswith("tracker.csv: right_hand jumps 0.9 m between frames 4 and 5 "
+                              "(t = 0.310 s; 90 m/s)")

@@ -496,6 +496,63 @@ def apply_overrides(session: Session, overrides: dict[str, str]) -> tuple[Sessio
     return changed, applied
 
 
+class TrackerWatch:
+    """What a tracker stream shows that its session file does not, seen frame by frame as
+    it is recorded: a device farther from the origin than a room (millimetres read as
+    metres), every position of a CSV log within millimetres of it (metres read as
+    millimetres), and a device jumping faster than a hand moves between two of its samples
+    (a keyframe in another unit, a tracker losing track)."""
+
+    # A room is no larger than this (m); no hand moves this fast (m/s) by this far (m).
+    ROOM_M, HAND_SPEED_M_S, JUMP_M = 20.0, 25.0, 0.05
+
+    def __init__(self, session: Session) -> None:
+        tracker = session.doc["tracker"]
+        self.csv = "csv" in tracker
+        self.units = tracker.get("csv_units", session.doc.get("units", "m")) if self.csv \
+            else session.doc.get("units", "m")
+        self.field = "tracker.csv" if self.csv else "tracker.devices"
+        self.reach: dict[str, tuple[float, int]] = {}
+        self.last: dict[str, tuple[int, tuple[float, float, float], int]] = {}
+        self.jumps: dict[str, list] = {}
+
+    def see(self, frame: TrackerFrame) -> None:
+        for name, sample in frame.devices:
+            p = sample.position
+            r = math.sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2])
+            if r > self.reach.get(name, (-1.0, 0))[0]:
+                self.reach[name] = (r, frame.frame)
+            last = self.last.get(name)
+            self.last[name] = (frame.time_ns, p, frame.frame)
+            if last is None:
+                continue
+            t0, p0, f0 = last
+            d = math.sqrt(sum((a - b) ** 2 for a, b in zip(p, p0)))
+            dt = (frame.time_ns - t0) * 1e-9
+            if d > self.JUMP_M and (dt <= 0.0 or d / dt > self.HAND_SPEED_M_S):
+                self.jumps.setdefault(name, []).append((f0, frame.frame, frame.time_ns, d, dt))
+
+    def warnings(self, first_time_ns: int) -> list[str]:
+        out = []
+        for name, (r, at) in sorted(self.reach.items()):
+            if r > self.ROOM_M:
+                out.append(f"{self.field}: {name} is {r:.3g} m from the origin at frame {at}, "
+                           f"farther than any room: positions in millimetres read as "
+                           f"{self.units}?")
+        if self.csv and self.units != "m" and self.reach \
+                and 0.0 < max(r for r, _ in self.reach.values()) < 0.003:
+            out.append(f"{self.field}: every position of the log is within 3 mm of the origin: "
+                       f"written in metres and read as {self.units} (tracker.csv_units)?")
+        for name, jumps in sorted(self.jumps.items()):
+            f0, f1, t, d, dt = jumps[0]
+            more = f" ({len(jumps) - 1} more such)" if len(jumps) > 1 else ""
+            rate = f"; {d / dt:.3g} m/s" if dt > 0.0 else " at one time stamp"
+            out.append(f"{self.field}: {name} jumps {d:.3g} m between frames {f0} and {f1} "
+                       f"(t = {(t - first_time_ns) * 1e-9:.3f} s{rate}){more}: faster than a "
+                       "hand moves; a position in another unit, or the tracker losing track?")
+        return out
+
+
 def record(session: Session, out: str | Path, *,
            on_frame: Callable[[FrameRecord], None] | None = None) -> RunSummary:
     """Run a session's tracker stream and write the recording to ``out``.
@@ -514,9 +571,11 @@ def record(session: Session, out: str | Path, *,
                          masses_kg={p.name: p.mass_kg for p in scene.parts})
     first_time = None
     frame = None
+    watch = TrackerWatch(session)
     writer = RecordingWriter(partial, session, scene)
     try:
-        for record_ in simulate(scene, session.tracker_frames(), collision=collision):
+        for record_ in simulate(scene, _watched(session.tracker_frames(), watch),
+                                collision=collision):
             frame = record_.frame
             if first_time is None:
                 first_time = record_.time_ns
@@ -544,7 +603,15 @@ def record(session: Session, out: str | Path, *,
         raise
     writer.close(complete_as=target)
     summary.counters = dict(collision.stats)
+    if first_time is not None:
+        summary.warnings += watch.warnings(first_time)
     return summary
+
+
+def _watched(frames: Iterable[TrackerFrame], watch: TrackerWatch) -> Iterator[TrackerFrame]:
+    for frame in frames:
+        watch.see(frame)
+        yield frame
 
 
 def _introduced(changed: Session, recorded: Session) -> list[str]:

@@ -329,6 +329,16 @@ class Session:
                                f"{_METRES_LIKE:g} {units} from the origin (at most "
                                f"{max(rs):g}), unlike the other devices': written in metres? "
                                f"they are read in the session's units ({units})")
+                elif rs and max(rs) >= 10.0 * _METRES_LIKE:
+                    # One keyframe written in metres among the device's others.
+                    frames = [kf for kf in tracker["devices"][name] if "position" in kf]
+                    odd = [(k, kf) for k, (kf, r) in enumerate(zip(frames, rs))
+                           if 0.0 < r < _METRES_LIKE]
+                    for k, kf in odd[:3]:
+                        out.append(f"tracker.devices.{name}: the keyframe at t = {kf['t']:g} s "
+                                   f"is {max(abs(float(c)) for c in kf['position']):g} {units} "
+                                   f"from the origin, the others up to {max(rs):g}: written "
+                                   f"in metres? it is read in the session's units ({units})")
         end = float(tracker.get("duration_s", 0.0))
         for name, frames in sorted((tracker.get("devices") or {}).items()):
             late = [kf["t"] for kf in frames if kf["t"] > end]
