@@ -166,6 +166,15 @@ def test_passed_just_before_a_block_it_is_placed_not_blocked():
     k_block = next(k for k in range(1, 60) if _z(k) <= 0.035)  # from the closed form
     assert _z(k_block - 1) > 0.038 + TOL  # the frame before ends above the tolerance
     assert _placed_frame(records) == RELEASE_FRAME + k_block
+    # Placed before it reached the block, it never met it: no ContactMade in that frame
+    # (block_event "always", how recordings were made before, wrote one).
+    placed = records[RELEASE_FRAME + k_block]
+    assert [(e.kind, e.cause) for e in placed.events] == [("ModeChanged",
+                                                            "reached_final_pose")]
+    doc["physics"]["block_event"] = "always"
+    before = run_records(doc)[RELEASE_FRAME + k_block]
+    assert [(e.kind, e.cause) for e in before.events] == [
+        ("ContactMade", "blocked_by_base"), ("ModeChanged", "reached_final_pose")]
     at_end = run_records(_doc("frame_end") | {"parts": doc["parts"]})
     assert _placed_frame(at_end) is None
     assert at_end[-1].parts[0].mode == "ONBASESTATIC"

@@ -981,7 +981,8 @@ _DERIVED = {"slide_step_s": ("slide_integrator", "slide_max_step_s", "onbase_max
 # What a recording made before a physics key existed was made with: the behaviour that
 # the key's other value keeps, for replaying such recordings as they were made.
 _BEFORE_THE_KEY = {"slide_onset": "sub_step", "slide_off": "frame_end",
-                   "final_pose_check": "frame_end", "block_cut": "both"}
+                   "final_pose_check": "frame_end", "block_cut": "both",
+                   "block_event": "always"}
 
 
 def _step_in_effect(recorded: dict, bound: str, before: float):

@@ -67,6 +67,7 @@ SLIDE_ONSETS = ("located", "sub_step")
 SLIDE_OFFS = ("located", "frame_end")
 FINAL_POSE_CHECKS = ("path", "frame_end")
 BLOCK_CUTS = ("blamed", "both")
+BLOCK_EVENTS = ("first", "always")
 
 
 @dataclass(frozen=True)
@@ -109,6 +110,9 @@ class Physics:
     # blamed: a block cuts at the contact only the motion it stops (slide or turn); both:
     # slide and turn, as before 2026-11-22 (a turn cut so kept its end rate: energy gained)
     block_cut: str = "blamed"
+    # first: a block's ContactMade only where the block comes before the final pose in the
+    # frame (a part placed first never met the obstacle); always: as before 2026-11-23
+    block_event: str = "first"
     turn_integrator: str = "yoshida6"        # paper: eq. 11 once per frame
     # Longest sub-steps on the base, read through turn_step_s / slide_step_s. None: the
     # default below, or onbase_max_step_s where a session sets that (for both).
@@ -125,6 +129,7 @@ class Physics:
             ("slide_off", self.slide_off, SLIDE_OFFS),
             ("final_pose_check", self.final_pose_check, FINAL_POSE_CHECKS),
             ("block_cut", self.block_cut, BLOCK_CUTS),
+            ("block_event", self.block_event, BLOCK_EVENTS),
             ("turn_integrator", self.turn_integrator, TURN_INTEGRATORS))
         for name, value, allowed in choices:
             if value not in allowed:

@@ -1118,7 +1118,10 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
     new = m.moved(x1, v1, a1, w1)
     if blocked is not None:
         new = _stop_at_block(new, m, x1, a1, blame_slide, blame_turn)  # type: ignore[possibly-undefined]
-        _blocked_event(f, part.name, lam)  # type: ignore[possibly-undefined]
+        # Placed before it reached the obstacle (``passed``: no later than the block), the
+        # part never met it: no contact (what comes first in the frame wins).
+        if passed is None or passed > lam or physics.block_event == "always":  # type: ignore[possibly-undefined]
+            _blocked_event(f, part.name, lam)  # type: ignore[possibly-undefined]
     if passed is not None or (assembly.final_pose is not None
                               and cn.at_final_pose(assembly, rel)):
         _place(f, index, Cause.REACHED_FINAL_POSE)
