@@ -801,6 +801,19 @@ def _release_on_base(f: _Frame, index: int, hand: str) -> bool:
         if snapped is None:
             continue
         zeros = tuple(0.0 for _ in mate.slide_dirs)
+        if mate.kind == "axis" and mate.slide_dirs:
+            # On the shaft's line but not on the shaft: within the recognition distance of
+            # its end the snap puts the bore onto the end (as it puts it onto the axis),
+            # and the part slides on from there; farther off it is not on this constraint
+            # (it slid off at once, and flew through the base it was still touching).
+            gap = -_bore_overlap(mate, OnBase(mate_index, snapped, zeros, zeros), zeros)
+            if gap > mate.distance_tolerance:
+                continue
+            if gap > 0.0:
+                toward = gap if _bore_overlap(mate, OnBase(mate_index, snapped, zeros, zeros),
+                                              (gap,)) > -gap else -gap
+                snapped = sp.Pose(sp.add(snapped.position, sp.scale(mate.slide_dirs[0], toward)),
+                                  snapped.rotation)
         motion = OnBase(mate_index, snapped, zeros, zeros,
                         cm_offset=cn.cm_offset_base(mate, snapped) if mate.turn else sp.ZERO3)
         if cn.at_final_pose(assembly, snapped):
