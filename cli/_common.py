@@ -9,7 +9,7 @@ import sys
 from contextlib import contextmanager
 from typing import Callable
 
-from vade_replay.errors import VadeError
+from vade_replay.errors import ConfigError, VadeError
 
 EXIT_OK, EXIT_DIVERGED, EXIT_UNUSABLE = 0, 1, 2
 EXIT_PIPE_CLOSED = 141
@@ -118,6 +118,15 @@ def _pipe_closed() -> int:
     print("stopped: standard output was closed by its reader; outputs of the run not yet "
           "written (tables, -o, --rerun) were not written", file=sys.stderr)
     return EXIT_PIPE_CLOSED
+
+
+def not_standard_output(path: str | None, option: str) -> None:
+    """``-o -`` or ``--rerun -``: refused (a file named ``-`` was written, while a table's
+    ``-`` means standard output). An MCAP recording is written with offsets into its file,
+    and a review is a file the viewer opens."""
+    if path == "-":
+        raise ConfigError(f"{option} writes a file, not standard output: give a file "
+                          "name (a table's - is standard output)", field=option)
 
 
 def print_json(value: object) -> None:

@@ -10,7 +10,7 @@ from vade_replay import session as session_mod
 from vade_replay.errors import ConfigError
 from vade_replay.replay import describe_miss, record
 
-from ._common import EXIT_OK, Progress, print_json, run
+from ._common import EXIT_OK, Progress, not_standard_output, print_json, run
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -28,6 +28,7 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    not_standard_output(args.output, "-o")
     session = session_mod.load(args.session)
     out = Path(args.output) if args.output else Path(Path(args.session).stem + ".mcap")
     _check_output(out, Path(args.session), session)

@@ -20,7 +20,7 @@ from vade_replay.tables import FRAME_TABLES, STDOUT, FrameTables, TableError, Ta
 from vade_replay.errors import VadeError
 
 from ._common import (EXIT_DIVERGED, EXIT_OK, EXIT_UNUSABLE, Progress, closed_pipe,
-                      going_on_without_stdout, print_json, run)
+                      going_on_without_stdout, not_standard_output, print_json, run)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -133,6 +133,8 @@ def _check_output_paths(args) -> None:
     """No output (``-o``, ``--rerun``, a table) may name a recording being replayed nor
     another output of the run: a slip such as ``--rerun run.mcap`` for ``run.rrd`` must
     not destroy the recording."""
+    not_standard_output(args.output, "-o")
+    not_standard_output(args.rerun, "--rerun")
     others: list[tuple[str, list]] = [("a recording replayed", args.recordings)]
     for option, given in [("-o", args.output), ("--rerun", args.rerun), *_table_options(args)]:
         if not given:

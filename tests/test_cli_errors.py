@@ -685,3 +685,16 @@ def test_two_recordings_to_one_output_at_once_do_not_mix(tmp_path):
     # Once the first is done, the same output is free again.
     assert run_cli("vade-record", str(RECORDINGS / "drop_on_table.json"), "-o", str(out),
                    process=True).returncode == 0
+
+
+@pytest.mark.parametrize("command, option", [("vade-record", "-o"), ("vade-replay", "-o"),
+                                             ("vade-replay", "--rerun")])
+def test_a_recording_or_review_to_standard_output_is_refused_not_a_file_named_dash(
+        tmp_path, command, option, monkeypatch):
+    """``-o -`` wrote a file named ``-`` (a table's ``-`` is standard output)."""
+    monkeypatch.chdir(tmp_path)
+    source = RECORDINGS / ("drop_on_table.json" if command == "vade-record"
+                           else "drop_on_table.mcap")
+    _assert_clean_error(run_cli(command, str(source), option, "-"), option,
+                        "writes a file, not standard output")
+    assert not (tmp_path / "-").exists()

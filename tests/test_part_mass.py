@@ -115,3 +115,23 @@ def test_a_what_if_of_a_parts_mass_asks_would_it_still_be_lifted(tmp_path):
     record(session_mod.load(path), out)
     result = run_cli("vade-replay", str(out), "--set", "parts.peg.density=5000")
     assert result.returncode == 2 and "change parts.peg.mass" in result.stderr
+
+
+def test_set_values_may_carry_a_mass_or_length_unit_and_an_unknown_one_is_named():
+    """``12g`` and ``0.012kg`` are one mass; ``5cm`` a length like ``50mm``; ``3ft`` is
+    refused naming the units there are, and a unit of the wrong kind names the key."""
+    from vade_replay.errors import ConfigError
+    from vade_replay.replay import _in_session_units
+    assert _in_session_units("parts.peg.mass", "12g", "mm") == repr(0.012)
+    assert _in_session_units("parts.peg.mass", "0.012 kg", "m") == repr(0.012)
+    assert _in_session_units("physics.grab_radius", "5cm", "mm") == repr(50.0)
+    assert _in_session_units("physics.grab_radius", "5cm", "m") == repr(0.05)
+    assert _in_session_units("physics.grab_radius", "1e-3", "m") == "1e-3"
+    with pytest.raises(ConfigError, match="unknown unit 'ft' .lengths: m, mm, in, cm; "
+                                          "masses: kg, g"):
+        _in_session_units("parts.peg.mass", "3ft", "m")
+    with pytest.raises(ConfigError, match="has a mass unit, and this is not a mass"):
+        _in_session_units("physics.grab_radius", "3g", "m")
+    summary = replay(Recording(RECORDINGS / "drop_on_table.mcap"),
+                     overrides={"parts.peg.mass": "25000g"}).to_dict()
+    assert summary["masses_kg"] == {"peg": 25.0}

@@ -355,3 +355,18 @@ def test_a_csv_log_in_another_length_unit_or_jumping_is_warned_of_when_recorded(
     (warning,) = _record_csv(tmp_path, jump)
     assert warning.startswith("tracker.csv: right_hand jumps 0.9 m between frames 4 and 5 "
                               "(t = 0.310 s; 90 m/s)")
+
+
+def test_a_short_csv_row_and_a_wrong_header_say_what_they_hold():
+    """A row cut short names its line and how many values it has against the header's
+    columns (it said ``list index out of range``); a header lacking columns shows what it
+    read and what a log's header is."""
+    short = CSV.replace("0.100,right_hand,0,0,790,1,0,0,0,1", "0.100,right_hand,0,0,790,1,0")
+    with pytest.raises(SessionError) as info:
+        list(make_session(_csv_doc(), {"log.csv": short.encode()}).tracker_frames())
+    assert info.value.field == "line 4"
+    assert "7 values where the header has 10 columns" in info.value.message
+    renamed = CSV.replace("time,device,", "t,device,", 1)
+    with pytest.raises(SessionError) as info:
+        list(make_session(_csv_doc(), {"log.csv": renamed.encode()}).tracker_frames())
+    assert info.value.message.startswith("the header lacks time (it reads t,device,x,y,z,")

@@ -125,6 +125,9 @@ def _csv_row(row: list[str], col: dict[str, int], line_no: int, *, file: str, fa
              known: tuple[str, ...]) -> tuple[int, str, DeviceSample]:
     """One row of a tracker log: time, device and its sample; a bad row names its line."""
     where = f"line {line_no}"
+    if len(row) < len(col) or len(row) <= max(col.values()):
+        raise SessionError(f"{len(row)} values where the header has "
+                           f"{max(col.values()) + 1} columns", file=file, field=where)
     try:
         t_ns = _parse_time_ns(row[col["time"]].strip(), time_unit)
         device = row[col["device"]].strip()
@@ -180,8 +183,9 @@ def from_csv(data: bytes, *, file: str, units: str, time_unit: str,
         raise SessionError("tracker log is empty", file=file) from None
     missing = [c for c in CSV_COLUMNS if c not in header]
     if missing:
-        raise SessionError(f"tracker log lacks columns {missing} (needs {list(CSV_COLUMNS)})",
-                           file=file, field="header")
+        raise SessionError(f"the header lacks {', '.join(missing)} (it reads "
+                           f"{','.join(header)}; a log's header is {','.join(CSV_COLUMNS)}, "
+                           "in any order)", file=file, field="header")
     col = {name: header.index(name) for name in CSV_COLUMNS}
     last: dict[str, DeviceSample] = {}
     current: dict[str, DeviceSample] = {}

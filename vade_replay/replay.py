@@ -354,9 +354,11 @@ def _override_target(doc: dict, physics: dict, key: str) -> dict:
                           "tools.TOOL.FIELD=VALUE", field=key)
     if key.startswith("parts."):
         return _constraint_target(doc, key)
-    raise ConfigError("only physics parameters, tools and constraints can be changed: "
-                      "physics.NAME=VALUE, tools.TOOL.FIELD=VALUE or "
-                      "parts.PART.constraints.NAME.FIELD=VALUE", field=key)
+    raise ConfigError("only physics parameters, tools and parts can be changed: "
+                      "physics.NAME=VALUE, tools.TOOL.FIELD=VALUE, "
+                      "parts.PART.constraints.NAME.FIELD=VALUE or parts.PART.FIELD=VALUE "
+                      "(mass, density, final_tolerance.distance, final_tolerance.angle_deg)",
+                      field=key)
 
 
 # What a what-if may change of a part's constraint or final pose: the recognition tolerances
@@ -418,7 +420,10 @@ def _constraint_target(doc: dict, key: str) -> dict:
     return constraints[names.index(wanted)].setdefault(leaf.split(".")[0], {})
 
 
-_WITH_UNIT = re.compile(r"\s*(-?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(m|mm|in)\s*")
+_WITH_UNIT = re.compile(r"\s*(-?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([A-Za-z]+)\s*")
+# Units a --set value may carry: lengths (converted to the session's unit) and masses (kg).
+_LENGTH_UNITS = {**UNIT_TO_M, "cm": 0.01}
+_MASS_UNITS = {"kg": 1.0, "g": 1e-3}
 
 
 def _is_length(key: str) -> bool:
@@ -427,16 +432,35 @@ def _is_length(key: str) -> bool:
     return field in LENGTH_FIELDS or key.endswith("tolerance.distance")
 
 
+def _is_mass(key: str) -> bool:
+    """A ``--set`` key whose value is a mass (kg unless it says)."""
+    return key.startswith("parts.") and key.endswith(".mass") \
+        or key.rpartition(".")[2] in ("one_hand_max_mass_kg", "two_hand_max_mass_kg",
+                                      "max_mass_kg")
+
+
 def _in_session_units(key: str, text: str, units: str) -> str:
-    """``15mm``, ``0.6 in``, ``0.015m``: a length in its own unit, as the session's unit
-    writes it (a study's --set then means one length in sessions of mm and of metres)."""
+    """``15mm``, ``1.5cm``, ``0.6 in``, ``0.015m``: a length in its own unit, as the
+    session's unit writes it (a study's --set then means one length in sessions of mm and
+    of metres); ``12g``, ``0.012kg``: a mass, in kg."""
     match = _WITH_UNIT.fullmatch(text)
     if match is None:
         return text
-    if not _is_length(key):
-        raise ConfigError(f"{text!r} has a length unit, and this is not a length", field=key)
     number, unit = match.groups()
-    return repr(float(number) * UNIT_TO_M[unit] / UNIT_TO_M[units])
+    if unit in ("e", "E", "Infinity", "NaN"):
+        return text  # not a unit: JSON's reading decides
+    known = f"lengths: {', '.join(_LENGTH_UNITS)}; masses: {', '.join(_MASS_UNITS)}"
+    if unit in _LENGTH_UNITS:
+        if not _is_length(key):
+            raise ConfigError(f"{text!r} has a length unit, and this is not a length",
+                              field=key)
+        return repr(float(number) * _LENGTH_UNITS[unit] / UNIT_TO_M[units])
+    if unit in _MASS_UNITS:
+        if not _is_mass(key):
+            raise ConfigError(f"{text!r} has a mass unit, and this is not a mass", field=key)
+        return repr(float(number) * _MASS_UNITS[unit])
+    raise ConfigError(f"{text!r}: unknown unit {unit!r} ({known}; or a plain number, in "
+                      "the session's units)", field=key)
 
 
 def apply_overrides(session: Session, overrides: dict[str, str]) -> tuple[Session, dict]:
@@ -593,8 +617,9 @@ def record(session: Session, out: str | Path, *,
             raise
         if exc.frame is None and exc.field is None and frame is not None:
             exc.frame = frame + 1  # the frame being made when it failed
-        exc.message += (f" (the {writer.frames} frame{'s' if writer.frames != 1 else ''} before it "
-                        f"are kept in {partial})")
+        kept = "the frame before it is" if writer.frames == 1 \
+            else f"the {writer.frames} frames before it are"
+        exc.message += f" ({kept} kept in {partial})"
         raise type(exc)(exc.message, file=exc.file, field=exc.field, frame=exc.frame) from None
     except BaseException as exc:
         writer.close()
@@ -938,7 +963,9 @@ def describe_miss(miss: dict) -> str:
 
 def _kept(frames: int, partial: Path) -> str:
     """Where an interrupted run's frames are (``run`` prints the note)."""
-    return f"the {frames} frame{'s' if frames != 1 else ''} written so far are kept in {partial}"
+    kept = "the frame written so far is" if frames == 1 \
+        else f"the {frames} frames written so far are"
+    return f"{kept} kept in {partial}"
 
 
 @dataclass
