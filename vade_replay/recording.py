@@ -31,8 +31,9 @@ from mcap.data_stream import ReadDataStream
 from mcap.exceptions import EndOfFile, McapError, RecordLengthLimitExceeded
 from mcap.opcode import Opcode
 from mcap.reader import make_reader
-from mcap.records import (Attachment, Channel, Chunk, DataEnd, Footer, Header, Message,
-                          Metadata)
+from mcap.records import (Attachment, AttachmentIndex, Channel, Chunk, ChunkIndex, DataEnd,
+                          Footer, Header, Message, Metadata, MetadataIndex, Schema, Statistics,
+                          SummaryOffset)
 from mcap.stream_reader import StreamReader, get_chunk_data_stream, read_magic
 from mcap.writer import CompressionType, Writer
 from zstandard import ZstdError
@@ -100,21 +101,30 @@ def _chunk_records(chunk: Chunk) -> Iterator[Channel | tuple[int, bytes]]:
         # Schemas and any record type this version does not know: skipped, as MCAP says.
 
 
-# The records a replay reads outside chunks, read by the mcap library; every other record
-# is passed over unread (as the library passes over a record type it does not know).
-_READ_OUTSIDE_CHUNKS = {Opcode.CHUNK: Chunk.read, Opcode.CHANNEL: Channel.read,
-                        Opcode.DATA_END: DataEnd.read, Opcode.FOOTER: Footer.read}
+# Every record outside chunks is read by the mcap library, as its StreamReader reads it
+# (so damage anywhere in the file is found as it was), but for the message indexes.
+_READ_OUTSIDE_CHUNKS = {
+    Opcode.ATTACHMENT: Attachment.read, Opcode.ATTACHMENT_INDEX: AttachmentIndex.read,
+    Opcode.CHANNEL: Channel.read, Opcode.CHUNK: Chunk.read,
+    Opcode.CHUNK_INDEX: ChunkIndex.read, Opcode.DATA_END: DataEnd.read,
+    Opcode.FOOTER: Footer.read, Opcode.HEADER: Header.read, Opcode.METADATA: Metadata.read,
+    Opcode.METADATA_INDEX: MetadataIndex.read, Opcode.SCHEMA: Schema.read,
+    Opcode.STATISTICS: Statistics.read, Opcode.SUMMARY_OFFSET: SummaryOffset.read}
+_YIELDED = (Chunk, Channel, Message, DataEnd, Footer)
 _RECORD_SIZE_LIMIT = 4 * 2**30  # StreamReader's default: a larger record is damage
+_INDEX_HEAD = struct.Struct("<HI")  # a message index: channel id, byte length of entries
 
 
 def _records(stream) -> Iterator[Chunk | Channel | Message | DataEnd | Footer]:
     """The chunks, channels, unchunked messages, data end and footer of an MCAP stream, in
-    order: ``StreamReader(stream, emit_chunks=True).records`` without the records a replay
-    does not use. Those, the message indexes above all (one a channel and chunk, with an
-    entry for every message, which the library reads eight bytes at a time: ~3 us a frame,
-    a quarter of a read-and-decode), are read as bytes and passed over. The damage and
-    the ends the library reports are reported the same (``EndOfFile`` for a file cut
-    short, ``McapError`` for a bad magic or a record over 4 GiB)."""
+    order: ``StreamReader(stream, emit_chunks=True).records`` less the records a replay
+    does not use, read as the library reads them but for the message indexes (one a
+    channel and chunk, with an entry for every message, which the library reads eight
+    bytes at a time: ~3 us a frame, a quarter of a read-and-decode). An index's entries
+    are read as one block of the length its head gives, so a damaged file reads on from
+    the same byte as with the library (a chunk whose opcode became an index's is damage
+    found at the next record, not a chunk passed over). A file cut short ends in
+    ``EndOfFile``; damage is what the library's reading of a record raises."""
     data = ReadDataStream(stream)
     read_magic(data)
     while True:
@@ -122,16 +132,32 @@ def _records(stream) -> Iterator[Chunk | Channel | Message | DataEnd | Footer]:
         length = data.read8()
         if length > _RECORD_SIZE_LIMIT:
             raise RecordLengthLimitExceeded(opcode, length, _RECORD_SIZE_LIMIT)
+        if opcode == Opcode.MESSAGE_INDEX:
+            # As MessageIndex.read reads it, its entries taken as one block: the same bytes
+            # consumed (past the record's end too, where a damaged head says so).
+            count = data.count
+            head = data.read(_INDEX_HEAD.size)
+            if len(head) < _INDEX_HEAD.size:
+                raise EndOfFile()
+            _, size = _INDEX_HEAD.unpack(head)
+            entries = -(-size // 16) * 16
+            if entries and len(data.read(entries)) < entries:
+                raise EndOfFile()
+            padding = length - (data.count - count)
+            if padding > 0:
+                data.read(padding)
+            continue
         read = _READ_OUTSIDE_CHUNKS.get(opcode)
         if read is None and opcode != Opcode.MESSAGE:
-            data.read(length)
+            data.read(length)  # a record type this version does not know: as MCAP says
             continue
         count = data.count
         record = Message.read(data, length) if read is None else read(data)
         padding = length - (data.count - count)
         if padding > 0:
             data.read(padding)
-        yield record
+        if isinstance(record, _YIELDED):
+            yield record
         if opcode == Opcode.FOOTER:
             read_magic(data)
             return
