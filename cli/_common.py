@@ -42,7 +42,7 @@ class StdoutOrNothing:
         if closed_pipe(self._stream):
             StdoutOrNothing.gone = True
             try:
-                os.dup2(os.open(os.devnull, os.O_WRONLY), self._stream.fileno())
+                _to_devnull(self._stream)
             except (OSError, ValueError):
                 pass
             return
@@ -94,6 +94,15 @@ def run(main: Callable[[list[str] | None], int], argv: list[str] | None = None) 
         return 130
 
 
+def _to_devnull(stream) -> None:
+    """Point the stream's file descriptor at /dev/null (its writes then go nowhere)."""
+    null = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(null, stream.fileno())
+    finally:
+        os.close(null)
+
+
 def closed_pipe(stream) -> bool:
     """Whether ``stream`` is a pipe whose reader has gone (poll reports an error on its end);
     not a file, a terminal, or a pipe still read."""
@@ -112,7 +121,7 @@ def _pipe_closed() -> int:
     for stream in (sys.stdout, sys.stderr):
         if closed_pipe(stream):
             try:
-                os.dup2(os.open(os.devnull, os.O_WRONLY), stream.fileno())
+                _to_devnull(stream)
             except (OSError, ValueError):
                 pass
     print("stopped: standard output was closed by its reader; outputs of the run not yet "

@@ -345,3 +345,60 @@ def test_a_recording_cut_in_its_index_keeps_every_frame(tmp_path):
     path.write_bytes(golden[:len(golden) // 2])
     recording = Recording(path)
     assert len(list(recording.frames())) < whole and recording.truncated
+
+
+def _writer_setup():
+    from vade_replay.replay import simulate
+    session = load(RECORDINGS / "drop_on_table.json")
+    scene = session.build_scene()
+    return session, scene, list(simulate(scene, session.tracker_frames()))[:20]
+
+
+def test_a_run_that_opened_the_partial_file_as_another_finished_does_not_truncate_it(
+        tmp_path, monkeypatch):
+    """Run B opens OUT.partial; run A moves it to OUT and closes; B's lock then succeeds on
+    A's finished file. B must see that the path no longer names it and open afresh, not
+    truncate A's recording (a review forced this order: OUT went to 0 bytes)."""
+    import os
+
+    from vade_replay import recording as rec_module
+    from vade_replay.recording import RecordingWriter
+    session, scene, frames = _writer_setup()
+    out, partial = tmp_path / "OUT.mcap", tmp_path / "OUT.mcap.partial"
+    first = RecordingWriter(partial, session, scene)
+    for frame in frames:
+        first.write_frame(frame)
+    real_open = os.open
+    finished = []
+
+    def open_then_let_the_other_finish(path, flags, mode=0o777):
+        fd = real_open(path, flags, mode)
+        if not finished:
+            finished.append(True)
+            first.close(complete_as=out)
+        return fd
+    monkeypatch.setattr(rec_module.os, "open", open_then_let_the_other_finish)
+    second = RecordingWriter(partial, session, scene)
+    monkeypatch.setattr(rec_module.os, "open", real_open)
+    second.discard()
+    assert len(list(Recording(out).frames())) == len(frames)
+    assert not partial.exists()
+
+
+def test_where_locks_are_refused_a_recording_is_written_unlocked(tmp_path, monkeypatch):
+    """An NFS mount without lockd refuses flock (ENOLCK): written as before, not a
+    traceback."""
+    import errno
+
+    from vade_replay import recording as rec_module
+    from vade_replay.recording import RecordingWriter
+
+    def no_locks(fd, op):
+        raise OSError(errno.ENOLCK, "No locks available")
+    monkeypatch.setattr(rec_module.fcntl, "flock", no_locks)
+    session, scene, frames = _writer_setup()
+    writer = RecordingWriter(tmp_path / "x.mcap.partial", session, scene)
+    for frame in frames:
+        writer.write_frame(frame)
+    writer.close(complete_as=tmp_path / "x.mcap")
+    assert len(list(Recording(tmp_path / "x.mcap").frames())) == len(frames)

@@ -258,27 +258,46 @@ def _open_alone(path: Path):
     """``open(path, "wb")``, but a regular file is first locked (fcntl), without truncating
     it: a second run writing the same ``.partial`` (two ``vade-record -o X`` at once) is
     refused, naming the file, instead of each truncating and interleaving the other's
-    records. A pipe or device is not locked; nor is anything where fcntl is missing
-    (Windows). The lock goes with the file's closing."""
+    records. Locked, the file must still be the one at ``path`` (another run may have
+    moved it to its output between the open and the lock: then it is opened again). A pipe
+    or device is not locked, nor anything where fcntl is missing (Windows) or the file
+    system refuses locks (an NFS mount without lockd). The lock goes with the closing."""
+    for _ in range(100):
+        try:
+            fd = os.open(path, os.O_WRONLY | os.O_CREAT, 0o666)
+        except OSError as exc:
+            raise RecordingError(f"cannot write here: {exc.strerror or exc}",
+                                 file=str(path)) from None
+        try:
+            if fcntl is not None and stat.S_ISREG(os.fstat(fd).st_mode):
+                try:
+                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                except BlockingIOError:
+                    raise RecordingError(
+                        "another run is writing this file now (two runs with the same "
+                        "output?); wait for it to finish or give another output",
+                        file=str(path)) from None
+                except OSError:
+                    pass  # locks not supported here: written unlocked, as before
+                else:
+                    if not _names(path, fd):
+                        os.close(fd)
+                        continue  # moved away while we waited: open what is there now
+                os.ftruncate(fd, 0)
+            return open(fd, "wb", closefd=True)
+        except BaseException:
+            os.close(fd)
+            raise
+    raise RecordingError("cannot lock this file: it keeps being replaced", file=str(path))
+
+
+def _names(path: Path, fd: int) -> bool:
+    """Whether ``path`` is still the file open as ``fd``."""
     try:
-        fd = os.open(path, os.O_WRONLY | os.O_CREAT, 0o666)
-    except OSError as exc:
-        raise RecordingError(f"cannot write here: {exc.strerror or exc}",
-                             file=str(path)) from None
-    try:
-        if fcntl is not None and stat.S_ISREG(os.fstat(fd).st_mode):
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                raise RecordingError(
-                    "another run is writing this file now (two runs with the same output?); "
-                    "wait for it to finish or give another output",
-                    file=str(path)) from None
-            os.ftruncate(fd, 0)
-        return open(fd, "wb", closefd=True)
-    except BaseException:
-        os.close(fd)
-        raise
+        here, there = os.stat(path), os.fstat(fd)
+    except OSError:
+        return False
+    return (here.st_dev, here.st_ino) == (there.st_dev, there.st_ino)
 
 
 class RecordingWriter:
@@ -366,6 +385,14 @@ class RecordingWriter:
             complete_output(self.path, complete_as)
         finally:
             self._stream.close()
+
+    def discard(self) -> None:
+        """Close and remove a file that holds no frame, removed while still locked (no run
+        that began writing it meanwhile loses its file)."""
+        try:
+            self.path.unlink(missing_ok=True)
+        finally:
+            self.close()
 
     def __enter__(self) -> "RecordingWriter":
         return self

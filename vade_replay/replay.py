@@ -610,10 +610,11 @@ def record(session: Session, out: str | Path, *,
             if on_frame:
                 on_frame(record_)
     except VadeError as exc:
+        if writer.frames == 0 and target is not None:
+            writer.discard()  # nothing was recorded: leave nothing behind
+            raise
         writer.close()
         if writer.frames == 0:
-            if target is not None:
-                partial.unlink(missing_ok=True)  # nothing was recorded: leave nothing behind
             raise
         if exc.frame is None and exc.field is None and frame is not None:
             exc.frame = frame + 1  # the frame being made when it failed
@@ -1184,13 +1185,15 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     except VadeError as exc:
         if writer is None or partial is None:
             raise
+        if writer.frames == 0 and target is not None:
+            writer.discard()  # nothing was written: leave nothing behind
+            raise
         writer.close()
         if writer.frames == 0:
-            if target is not None:
-                partial.unlink(missing_ok=True)  # nothing was written: leave nothing behind
             raise
-        exc.message += (f" (the {writer.frames} regenerated frame"
-                        f"{'s' if writer.frames != 1 else ''} before it are kept in {partial})")
+        kept = "the regenerated frame before it is" if writer.frames == 1 \
+            else f"the {writer.frames} regenerated frames before it are"
+        exc.message += f" ({kept} kept in {partial})"
         raise type(exc)(exc.message, file=exc.file, field=exc.field, frame=exc.frame) from None
     except BaseException as exc:
         if writer:
@@ -1200,9 +1203,10 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
         raise
     if writer and partial is not None:
         if summary.frames == 0:
-            writer.close()
             if target is not None:
-                partial.unlink(missing_ok=True)  # nothing was written: leave nothing behind
+                writer.discard()  # nothing was written: leave nothing behind
+            else:
+                writer.close()
         else:
             writer.close(complete_as=target)
     if summary.frames == 0:
