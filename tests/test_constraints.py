@@ -499,3 +499,63 @@ def test_a_sleeve_let_go_on_the_shafts_line_just_above_its_end_slides_onto_it(ab
     # Once let go (frame 78), never inside the block (its top at z 0.97): the sleeve's
     # bottom stays above it.
     assert min(p.position[2] for r in records[78:] for p in r.parts) - 0.015 >= 0.97 - 1e-6
+
+
+def test_parts_in_a_bore_or_a_corner_are_not_taken_for_parts_inside_one_another():
+    """A review's cases: a pin standing in a tube's bore (0.1 mm clear), a block sitting
+    in an L-bracket's inner corner (touching both faces): nothing, though each lies inside
+    the other's box. A pin 5 mm too fat for the bore, and the block pushed 5 mm into the
+    bracket's wall, are said, with their depth (the deepest vertex inside the other's
+    solid)."""
+    from vade_replay.collision import CollisionWorld
+    from vade_replay.replay import scene_warnings
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+
+    def overlaps(parts):
+        doc["parts"] = parts
+        session = session_mod.parse(json.dumps(doc).encode(), {}, source="s.json")
+        scene = session.build_scene()
+        return [w for w in scene_warnings(scene, CollisionWorld(scene), session.doc)
+                if "into each other" in w]
+    tube = {"name": "tube", "density": 2700, "pose": {"position": [0, 0, 0.79]},
+            "shape": {"type": "tube", "radius": 0.02, "inner_radius": 0.01, "height": 0.1,
+                      "sections": 32}}
+    pin = {"name": "pin", "density": 7800, "pose": {"position": [0, 0, 0.8]},
+           "shape": {"type": "cylinder", "radius": 0.0099, "height": 0.12, "sections": 32}}
+    assert overlaps([tube, pin]) == []
+    pin["shape"]["radius"] = 0.015
+    (fat,) = overlaps([tube, pin])
+    assert fat.startswith("parts[0].pose: tube and pin (parts[1]) start about 5 mm into")
+    bracket = {"name": "bracket", "density": 2700, "pose": {"position": [0, 0, 0.74]},
+               "shape": {"type": "compound", "children": [
+                   {"type": "box", "size": [0.1, 0.1, 0.01], "pose": {"position": [0, 0, 0.005]}},
+                   {"type": "box", "size": [0.01, 0.1, 0.1],
+                    "pose": {"position": [-0.045, 0, 0.05]}}]}}
+    block = {"name": "block", "density": 2700, "pose": {"position": [-0.025, 0, 0.765]},
+             "shape": {"type": "box", "size": [0.03, 0.03, 0.03]}}
+    assert overlaps([bracket, block]) == []
+    block["pose"]["position"][0] = -0.03
+    (wall,) = overlaps([bracket, block])
+    assert wall.startswith("parts[0].pose: bracket and block (parts[1]) start about 5 mm into")
+
+
+def test_a_part_starting_inside_a_fixed_base_is_warned_of_and_one_on_it_is_not():
+    """An engineer's trial: a sleeve started 15 mm into a fixed bracket, silently. Here the
+    sleeve round the shaft, 5 mm into the block: said; resting on the block round the
+    shaft (its bore the shaft's size, touching it all round): nothing."""
+    from vade_replay.collision import CollisionWorld
+    from vade_replay.replay import scene_warnings
+    doc = json.loads((RECORDINGS / "shaft_placed.json").read_text())
+    doc["base"]["fixed"] = True
+    doc["base"]["pose"] = {"position": [0.0, 0.2, 0.95]}
+
+    def warnings(z):
+        doc["parts"][0]["pose"] = {"position": [0.0, 0.2, z]}
+        session = session_mod.parse(json.dumps(doc).encode(), {}, source="s.json")
+        scene = session.build_scene()
+        return scene_warnings(scene, CollisionWorld(scene), session.doc)
+    on_block = 0.95 + 0.02 + 0.015  # the block's top, plus half the sleeve
+    assert warnings(on_block) == []
+    (inside,) = warnings(on_block - 0.005)
+    assert inside.startswith("parts[0].pose: sleeve starts about 5 mm inside the base part "
+                             "(block_with_shaft)")

@@ -370,3 +370,17 @@ def test_a_short_csv_row_and_a_wrong_header_say_what_they_hold():
     with pytest.raises(SessionError) as info:
         list(make_session(_csv_doc(), {"log.csv": renamed.encode()}).tracker_frames())
     assert info.value.message.startswith("the header lacks time (it reads t,device,x,y,z,")
+
+
+def test_a_log_stamping_its_devices_apart_is_not_taken_for_a_jumping_hand(tmp_path):
+    """60 Hz, the hand stamped 1 ms after the head, moving at 4 m/s: a frame per stamp, and
+    the hand's sample carried over into the head's frames. Its jumps are measured between
+    its own samples (1/60 s apart), not across the 1 ms (a review: "66.5 m/s")."""
+    from vade_replay.replay import record
+    lines = ["time,device,x,y,z,q0,q1,q2,q3,grip"]
+    for n in range(120):
+        t = n / 60
+        lines += [f"{t:.6f},head,-600,0,1600,1,0,0,0,",
+                  f"{t + 0.001:.6f},right_hand,{4000 * t:.3f},0,900,1,0,0,0,0"]
+    session = make_session(_csv_doc(), {"log.csv": "\n".join(lines).encode()})
+    assert record(session, tmp_path / "offset.mcap").warnings == []

@@ -314,6 +314,17 @@ class CollisionWorld:
         return _distance(fcl.CollisionObject(self._model(a), _transform(pose_a)),
                          fcl.CollisionObject(self._model(b), _transform(pose_b)))
 
+    def point_distance(self, part: str, point: sp.Vec3, base: bool = False) -> float:
+        """Distance from a point (the part's own axes) to the part's surface; with ``base``
+        to the base part's (its axes; ``inf`` without one)."""
+        self.stats["fcl_distance_queries"] += 1
+        probe = fcl.CollisionObject(self._probe, fcl.Transform(np.array(point,
+                                                                         dtype=np.float64)))
+        if base:
+            return float("inf") if self._base_whole is None \
+                else _distance(probe, self._base_whole)
+        return _distance(probe, fcl.CollisionObject(self._model(part), fcl.Transform()))
+
     def distance_to_environment(self, part: str, pose: sp.Pose,
                                 candidates: tuple[int, ...]) -> tuple[float, int]:
         """Smallest distance from the posed part to the candidates (<= 0 when touching)."""

@@ -537,7 +537,7 @@ class TrackerWatch:
             else session.doc.get("units", "m")
         self.field = "tracker.csv" if self.csv else "tracker.devices"
         self.reach: dict[str, tuple[float, int]] = {}
-        self.last: dict[str, tuple[int, tuple[float, float, float], int]] = {}
+        self.last: dict[str, tuple[int, object, int]] = {}
         self.jumps: dict[str, list] = {}
 
     def see(self, frame: TrackerFrame) -> None:
@@ -547,10 +547,13 @@ class TrackerWatch:
             if r > self.reach.get(name, (-1.0, 0))[0]:
                 self.reach[name] = (r, frame.frame)
             last = self.last.get(name)
-            self.last[name] = (frame.time_ns, p, frame.frame)
+            if last is not None and last[1] is sample:
+                continue  # carried over from an earlier row of a log: not a new sample
+            self.last[name] = (frame.time_ns, sample, frame.frame)
             if last is None:
                 continue
-            t0, p0, f0 = last
+            t0, s0, f0 = last
+            p0 = s0.position  # type: ignore[attr-defined]
             d = math.sqrt(sum((a - b) ** 2 for a, b in zip(p, p0)))
             dt = (frame.time_ns - t0) * 1e-9
             if d > self.JUMP_M and (dt <= 0.0 or d / dt > self.HAND_SPEED_M_S):
@@ -797,25 +800,41 @@ def _overlapping_pairs(boxes: list[tuple[list[float], list[float]]]) -> list[tup
     return sorted(out)
 
 
-def _inside_part(collision: CollisionWorld, body, other, boxes) -> float:
-    """How far inside ``other`` the part ``body`` starts: it is brought in from beyond
-    both along the line from the other's box centre to its own (so a part stacked on or
-    beside the other, touching it, gets there) by its distance each step, and stops that
-    far short of its pose (fcl's distance is 0 for overlapping meshes and a gap between
-    nested ones, so a pose is not judged by its own distance)."""
-    a, b = boxes
-    centre = [0.5 * (a[0][k] + a[1][k]) - 0.5 * (b[0][k] + b[1][k]) for k in range(3)]
-    n = math.sqrt(sum(c * c for c in centre))
-    away = tuple(c / n for c in centre) if n > 1e-9 else (0.0, 0.0, 1.0)
+def _winding(vertices: np.ndarray, faces: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """The winding number of a closed mesh about each point: 1 inside, 0 outside (the solid
+    angles of its triangles summed, Van Oosterom and Strackee's formula)."""
+    out = np.zeros(len(points))
+    tri = vertices[faces]
+    for k in range(0, len(points), 64):  # (64 points x the triangles at a time)
+        p = points[k:k + 64, None, :]
+        a, b, c = tri[None, :, 0] - p, tri[None, :, 1] - p, tri[None, :, 2] - p
+        la, lb, lc = (np.linalg.norm(v, axis=2) for v in (a, b, c))
+        det = np.einsum("pfi,pfi->pf", a, np.cross(b, c))
+        div = la * lb * lc + np.einsum("pfi,pfi->pf", a, b) * lc \
+            + np.einsum("pfi,pfi->pf", a, c) * lb + np.einsum("pfi,pfi->pf", b, c) * la
+        out[k:k + 64] = np.arctan2(det, div).sum(axis=1) / (2.0 * np.pi)
+    return out
+
+
+def _depth_inside(collision: CollisionWorld, body, other, *, base: bool = False) -> float:
+    # (``base``: ``other`` is the base part.)
+    """How deep the deepest vertex of ``body`` lies inside ``other`` at their start poses
+    (its distance to the other's surface; 0 if none is inside): the vertices within the
+    other's box, those the other's surface winds about, each measured by fcl. A part in a
+    tube's bore or an L-bracket's corner has no vertex inside the other's solid, so it is
+    not taken for one inside it (bringing it in along a line, the first version, went
+    through the walls)."""
     pose, there = body.initial_pose, other.initial_pose
-    s = 1.5 * (_diagonal(a) + _diagonal(b)) + 0.01
-    for _ in range(_APPROACH_STEPS):
-        moved = Pose(tuple(p + s * u for p, u in zip(pose.position, away)), pose.rotation)
-        d = collision.distance_between_parts(body.name, moved, other.name, there)
-        if d <= _APPROACH_TOL_M or s <= 0.0:
-            break
-        s = max(0.0, s - d)
-    return s
+    to_other = there.inverse().compose(pose)
+    r = np.array(sp.quat_to_matrix(to_other.rotation))
+    points = body.vertices @ r.T + np.array(to_other.position)
+    lo, hi = np.array(other.bbox_min), np.array(other.bbox_max)
+    points = points[np.all((points > lo) & (points < hi), axis=1)]
+    if len(points) == 0:
+        return 0.0
+    inside = points[_winding(other.vertices, other.faces, points) > 0.5]
+    return max((collision.point_distance(other.name, tuple(map(float, q)), base=base)
+                for q in inside[:256]), default=0.0)
 
 
 def scene_warnings(scene: Scene, collision: CollisionWorld,
@@ -932,13 +951,26 @@ def scene_warnings(scene: Scene, collision: CollisionWorld,
     part_boxes = [boxes[b.name] for b in parts]
     for j, k in _overlapping_pairs(part_boxes):
         first, second = sorted((parts[j], parts[k]), key=lambda b: index[b.name])
-        depth = _inside_part(collision, first, second,
-                             (boxes[first.name], boxes[second.name]))
+        depth = max(_depth_inside(collision, first, second),
+                    _depth_inside(collision, second, first))
         if depth > _INSIDE_BASE_M:
             out.append(f"parts[{index[first.name]}].pose: {first.name} and {second.name} "
                        f"(parts[{index[second.name]}]) start about {depth * 1e3:.2g} mm "
                        "into each other; parts do not collide with each other, so they "
                        "stay so until a hand moves one")
+    # A part inside a fixed base (whose start pose is known: a held one follows the hand).
+    if scene.base is not None and scene.base_fixed:
+        base_box = _world_box(scene.base, scene.base.initial_pose)
+        for body in parts:
+            if _overlap(boxes[body.name], base_box) <= _INSIDE_BASE_M:
+                continue
+            depth = max(_depth_inside(collision, body, scene.base, base=True),
+                        _depth_inside(collision, scene.base, body))
+            if depth > _INSIDE_BASE_M:
+                out.append(f"parts[{index[body.name]}].pose: {body.name} starts about "
+                           f"{depth * 1e3:.2g} mm inside the base part "
+                           f"({scene.base.name}); it is not pushed out, and stays so until a "
+                           "hand moves it")
     collision.stats.update(counters)
     return out
 
