@@ -135,3 +135,51 @@ def test_set_values_may_carry_a_mass_or_length_unit_and_an_unknown_one_is_named(
     summary = replay(Recording(RECORDINGS / "drop_on_table.mcap"),
                      overrides={"parts.peg.mass": "25000g"}).to_dict()
     assert summary["masses_kg"] == {"peg": 25.0}
+
+
+def _warnings(doc):
+    from vade_replay.collision import CollisionWorld
+    from vade_replay.replay import mass_warnings
+    session = session_mod.parse(json.dumps(doc).encode(), {}, source="s.json")
+    scene = session.build_scene()
+    assert CollisionWorld(scene)  # (builds, as a recording would)
+    return mass_warnings(scene, session.doc)
+
+
+def test_mass_properties_in_other_units_are_warned_of():
+    """The peg (0.04 x 0.04 x 0.08 m) given CAD numbers: right, nothing; its mass in grams
+    (345.6 for 0.3456 kg), its inertia in kg mm^2 (a million times), a moment no body of
+    that shape can have, and a centre of mass outside it: each said."""
+    doc = _doc()
+    peg = doc["parts"][0]
+    del peg["density"]
+    m = 0.3456
+    right = {"mass": m, "center_of_mass": [0, 0, 0],
+             "inertia": [[m * (0.04**2 + 0.08**2) / 12, 0, 0], [0, m * (0.04**2 + 0.08**2) / 12, 0],
+                         [0, 0, m * (0.04**2 + 0.04**2) / 12]]}
+    peg["mass_properties"] = right
+    assert _warnings(doc) == []
+    peg["mass_properties"] = dict(right, mass=345.6)
+    (grams,) = _warnings(doc)
+    assert grams.startswith("parts[0].mass_properties: 345.6 kg in 128 cm^3 is 2.7e+06 kg/m^3")
+    peg["mass_properties"] = dict(right, inertia=[[x * 1e-6 for x in row]
+                                                  for row in right["inertia"]])
+    (units,) = _warnings(doc)
+    assert "its inertia is 1e-06 times that of its shape" in units
+    peg["mass_properties"] = dict(right, inertia=[[x * 20 for x in row]
+                                                  for row in right["inertia"]])
+    (too_big,) = _warnings(doc)
+    assert "more than any body of this shape and mass can have" in too_big
+    peg["mass_properties"] = dict(right, center_of_mass=[0, 0, 0.05])
+    (outside,) = _warnings(doc)
+    assert "the centre of mass (0, 0, 50) mm in the part's axes lies outside" in outside
+
+
+def test_a_what_if_of_a_mass_in_grams_is_warned_of():
+    """``--set parts.peg.mass=350`` (grams meant) of the 0.35 kg peg: the what-if says its
+    density is no solid's, as vade-record would; 0.35 says nothing."""
+    heavy = replay(Recording(RECORDINGS / "drop_on_table.mcap"),
+                   overrides={"parts.peg.mass": "350"})
+    assert [w for w in heavy.warnings if w.startswith("parts[0].mass: 350 kg in 128 cm^3")]
+    assert replay(Recording(RECORDINGS / "drop_on_table.mcap"),
+                  overrides={"parts.peg.mass": "0.35"}).warnings == []

@@ -30,7 +30,7 @@ from .frames import FrameRecord, TrackerFrame
 from .modes import Cause, Mode
 from .recording import (RecordedFrame, Recording, RecordingWriter,
                         partial_output, physics_metadata)
-from .scene import (LENGTH_FIELDS, PAPER_DEFAULTS, UNIT_TO_M, Scene,
+from .scene import (LENGTH_FIELDS, PAPER_DEFAULTS, UNIT_TO_M, Scene, even_inertia_trace,
                     physics_from_doc)
 from .session import _DENSITY_RANGE, Session, parse, strict_json
 from .spatial import Pose
@@ -780,6 +780,64 @@ def _sunk(collision: CollisionWorld, body, box, environment: list, gravity) -> \
     return (s, which) if s > _INSIDE_BASE_M else None
 
 
+def mass_warnings(scene: Scene, doc: dict | None) -> list[str]:
+    """What a part's mass says of a slip in its units: a ``mass`` alone (spread evenly)
+    making no solid's density; ``mass_properties`` whose mass makes no solid's density in
+    its closed mesh, whose inertia is far (100 times) from that shape's at that mass
+    spread evenly, or is more than any body of that shape can have (a moment above the
+    mass times its farthest vertex from the centre of mass squared), or whose centre of
+    mass lies outside the shape's box. Grams for kilograms, kg mm^2 for kg m^2."""
+    listed = list((doc or {}).get("parts") or [])
+    index = {str(p.get("name")): i for i, p in enumerate(listed)}
+    out = []
+    lo, hi = _DENSITY_RANGE
+    for body in scene.parts:
+        i = index.get(body.name)
+        part = listed[i] if i is not None else {}
+        if not ("mass" in part or "mass_properties" in part):
+            continue
+        where = f"parts[{i}].{'mass' if 'mass' in part else 'mass_properties'}"
+        closed = _closed(body.faces)
+        volume = _volume(body.vertices, body.faces) if closed else 0.0
+        if volume > 0.0 and not lo <= body.mass_kg / volume <= hi:
+            out.append(f"{where}: {body.mass_kg:g} kg in {volume * 1e6:.3g} cm^3 is "
+                       f"{body.mass_kg / volume:.3g} kg/m^3, no solid's (steel is about "
+                       "7850); masses are in kg whatever the session's units")
+            continue
+        if "mass_properties" not in part:
+            continue
+        reach = body.radius_about_cm
+        top = max(body.principal_moments)
+        if top > 1.01 * body.mass_kg * reach * reach:
+            out.append(f"{where}: a principal moment of inertia of {top:.3g} kg m^2 is more "
+                       f"than any body of this shape and mass can have ({body.mass_kg:g} kg "
+                       f"within {reach * 1e3:.3g} mm of its centre of mass: at most "
+                       f"{body.mass_kg * reach * reach:.3g}); inertia in other units?")
+            continue
+        cm = body.center_of_mass
+        if any(not body.bbox_min[k] - 1e-9 <= cm[k] <= body.bbox_max[k] + 1e-9
+               for k in range(3)):
+            out.append(f"{where}: the centre of mass "
+                       f"({', '.join(f'{c * 1e3:.3g}' for c in cm)}) mm in the part's axes "
+                       "lies outside the part's shape; in other units, or other axes?")
+            continue
+        if volume > 0.0:
+            ratio = sum(body.principal_moments) / even_inertia_trace(
+                body.vertices, body.faces, body.mass_kg / volume)
+            if not 0.01 <= ratio <= 100.0:
+                out.append(f"{where}: its inertia is {ratio:.3g} times that of its shape "
+                           "at its mass spread evenly; in other units (kg mm^2 for kg "
+                           "m^2 is a million)?")
+    return out
+
+
+def _closed(faces: np.ndarray) -> bool:
+    """Every edge of the mesh shared by exactly two of its triangles."""
+    edges = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    return bool(len(counts)) and bool(np.all(counts == 2))
+
+
 def _volume(vertices, faces) -> float:
     """The volume a closed mesh encloses (m^3): its signed tetrahedra from the origin."""
     v = vertices[faces]
@@ -932,20 +990,7 @@ def scene_warnings(scene: Scene, collision: CollisionWorld,
             out.append(f"parts[{index[body.name]}].pose: {body.name} starts about "
                        f"{depth * 1e3:.2g} mm inside {collision.environment_name(which)} "
                        "(let down onto it from above, it stops that far short of its pose)")
-    # A mass given alone spreads it at a uniform density: say where that is no solid's
-    # (grams written for kilograms, most likely).
-    for body in scene.parts:
-        part_doc = ((doc or {}).get("parts") or [])[index[body.name]] \
-            if index[body.name] < len((doc or {}).get("parts") or []) else {}
-        if "mass" in part_doc and "density" not in part_doc \
-                and "mass_properties" not in part_doc:
-            volume = _volume(body.vertices, body.faces)
-            lo, hi = _DENSITY_RANGE
-            if volume > 0.0 and not lo <= body.mass_kg / volume <= hi:
-                out.append(f"parts[{index[body.name]}].mass: {body.mass_kg:g} kg in "
-                           f"{volume * 1e6:.3g} cm^3 is {body.mass_kg / volume:.3g} kg/m^3, "
-                           "no solid's (steel is about 7850); masses are in kg whatever "
-                           "the session's units")
+    out += mass_warnings(scene, doc)
     # Parts that start inside one another stay so: parts do not collide with each other.
     parts = list(scene.parts)
     part_boxes = [boxes[b.name] for b in parts]
@@ -1147,6 +1192,11 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
                          masses_kg={p.name: p.mass_kg for p in scene.parts},
                          physics_changed=physics_changes(recording, scene.physics, applied),
                          warnings=_introduced(session, recording.session) if applied else [])
+    if any(key.startswith("parts.") and key.endswith((".mass", ".density"))
+           for key in applied):
+        # (A mass is weighed against the part's shape: the scene's warning, not the file's.)
+        was = set(mass_warnings(recording.session.build_scene(), recording.session.doc))
+        summary.warnings += [w for w in mass_warnings(scene, session.doc) if w not in was]
     writer = None
     partial = target = None
     if out is not None:

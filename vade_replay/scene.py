@@ -374,6 +374,13 @@ def _mesh_from_shape(shape: dict, length_factor: float, files: dict[str, bytes],
     return loaded
 
 
+def even_inertia_trace(vertices: np.ndarray, faces: np.ndarray, density: float) -> float:
+    """The trace of the inertia tensor at the centre of mass (kg m^2) of a closed mesh
+    at a uniform density: what ``replay.mass_warnings`` holds given inertia to."""
+    mass = trimesh.triangles.mass_properties(triangles=vertices[faces], density=density)
+    return float(np.trace(mass.inertia))  # type: ignore[arg-type]
+
+
 def _mass_properties(doc: dict, mesh: trimesh.Trimesh, length_factor: float,
                      files: dict[str, bytes], *, where: str, file: str) -> MassProperties:
     """A body's mass properties: from its ``density`` or ``mass_properties``, scaled to its

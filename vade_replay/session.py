@@ -329,8 +329,9 @@ class Session:
                                f"{_METRES_LIKE:g} {units} from the origin (at most "
                                f"{max(rs):g}), unlike the other devices': written in metres? "
                                f"they are read in the session's units ({units})")
-                elif rs and max(rs) >= 10.0 * _METRES_LIKE:
-                    # One keyframe written in metres among the device's others.
+                elif units == "mm" and rs and max(rs) >= 10.0 * _METRES_LIKE:
+                    # One keyframe written in metres among the device's others (in a mm
+                    # session only: 3 in, 76 mm, is a place a hand may be).
                     frames = [kf for kf in tracker["devices"][name] if "position" in kf]
                     odd = [(k, kf) for k, (kf, r) in enumerate(zip(frames, rs))
                            if 0.0 < r < _METRES_LIKE]
