@@ -379,7 +379,11 @@ def _one_of_many(args, overrides: dict[str, str], path: str, result: tuple[str, 
 
 def _warn(path: str, summary) -> None:
     """A replay's warnings, on stderr: a recording cut short, a what-if's likely slips."""
-    if summary.truncated:
+    stopped = getattr(summary, "stopped", None)
+    if summary.truncated and stopped:
+        print(f"warning: {path}: the run that recorded it stopped before the session's end "
+              f"({stopped}); replayed the {summary.frames} frames it holds", file=sys.stderr)
+    elif summary.truncated:
         print(f"warning: {path}: the recording was cut short (no end records); replayed "
               f"the {summary.frames} complete frames it holds", file=sys.stderr)
     for warning in summary.warnings:

@@ -258,6 +258,9 @@ def test_frame_tables_refuse_other_outputs_and_are_not_left_by_a_failed_run(tmp_
     assert "120 regenerated frames before it are kept in" in result.stderr
     assert not events.exists() and kept.read_text() == "an older table\n"
     assert not regenerated.exists() and (tmp_path / "regenerated.mcap.partial").exists()
+    partial = Recording(tmp_path / "regenerated.mcap.partial")
+    assert len(list(partial.frames())) == 120 and partial.truncated
+    assert partial.stopped.startswith(f"{damaged}: damaged after 120 complete frames")
     assert sorted(p.name for p in tmp_path.iterdir()) == [
         "damaged.mcap", "kept.csv", "regenerated.mcap.partial"]  # no temporary table left
 

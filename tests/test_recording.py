@@ -164,10 +164,10 @@ def test_chunks_are_read_as_the_mcap_library_reads_them(golden):
 
 def _library_records(stream):
     """The reference for ``recording._records``: the library's reader, filtered."""
-    from mcap.records import Channel, Chunk, DataEnd, Footer, Message
+    from mcap.records import Channel, Chunk, DataEnd, Footer, Message, Metadata
     from mcap.stream_reader import StreamReader
     for record in StreamReader(stream, emit_chunks=True).records:
-        if isinstance(record, (Chunk, Channel, Message, DataEnd, Footer)):
+        if isinstance(record, (Chunk, Channel, Message, Metadata, DataEnd, Footer)):
             yield record
 
 
@@ -328,6 +328,17 @@ def test_an_interrupted_recording_says_where_its_frames_are(tmp_path, capsys):
     assert capsys.readouterr().err.strip() == (
         f"interrupted; the 10 frames written so far are kept in {partial}")
     assert not out.exists() and len(list(Recording(partial).frames())) == 10
+    # Closed properly, but short of the session: it says so when read (an engineer's
+    # trial found a replay of such a file saying nothing).
+    kept = Recording(partial)
+    list(kept.frames())
+    assert kept.truncated and kept.stopped == "interrupted"
+    from conftest import run_cli
+    result = run_cli("vade-replay", str(partial))
+    assert result.returncode == 0 and ("the run that recorded it stopped before the "
+                                       "session's end (interrupted); replayed the 10 frames"
+                                       ) in result.stderr
+    assert not Recording(RECORDINGS / "drop_on_table.mcap").stopped
 
 
 def test_a_recording_cut_in_its_index_keeps_every_frame(tmp_path):

@@ -51,6 +51,8 @@ CHUNK_SECONDS_NS = 10**9
 ENCODING_METADATA = "encoding"
 # session.validated_digest of the attached session: a replay skips validating it again.
 VALIDATED_METADATA = "validated"
+# Written when a run stops before its end (an error, Ctrl-C): why, and how many frames.
+STOPPED_METADATA = "stopped"
 # What a damaged file raises from mcap and its zstd chunks (a flipped byte in a compressed
 # chunk is a ZstdError, not an McapError).
 # What the mcap library raises on a damaged or cut file (OverflowError: a chunk's compression
@@ -110,7 +112,7 @@ _READ_OUTSIDE_CHUNKS = {
     Opcode.FOOTER: Footer.read, Opcode.HEADER: Header.read, Opcode.METADATA: Metadata.read,
     Opcode.METADATA_INDEX: MetadataIndex.read, Opcode.SCHEMA: Schema.read,
     Opcode.STATISTICS: Statistics.read, Opcode.SUMMARY_OFFSET: SummaryOffset.read}
-_YIELDED = (Chunk, Channel, Message, DataEnd, Footer)
+_YIELDED = (Chunk, Channel, Message, Metadata, DataEnd, Footer)
 _RECORD_SIZE_LIMIT = 4 * 2**30  # StreamReader's default: a larger record is damage
 _INDEX_HEAD = struct.Struct("<HI")  # a message index: channel id, byte length of entries
 
@@ -171,7 +173,7 @@ def _messages(stream) -> Iterator[Channel | tuple[int, bytes] | DataEnd | Footer
             yield from _chunk_records(record)
         elif isinstance(record, Message):  # a file written without chunks
             yield record.channel_id, record.data
-        elif isinstance(record, (Channel, DataEnd, Footer)):
+        elif isinstance(record, (Channel, Metadata, DataEnd, Footer)):
             yield record
 
 
@@ -362,14 +364,19 @@ class RecordingWriter:
             self._writer.flush()
             self._last_flush_ns = t
 
-    def close(self, *, complete_as: Path | None = None) -> None:
+    def close(self, *, complete_as: Path | None = None, stopped: str | None = None) -> None:
         """Write the summary and close; a closed file is complete and indexed. With
         ``complete_as`` (``partial_output``'s target) it is moved there first, while it is
-        still open and locked: no other run can begin writing the partial name between."""
+        still open and locked: no other run can begin writing the partial name between.
+        ``stopped``: why the run ended before its end (kept as metadata: a reader then
+        knows the file holds fewer frames than the session, ``Recording.truncated``)."""
         if self._stream.closed:
             return
         try:
             try:
+                if stopped is not None:
+                    self._writer.add_metadata(STOPPED_METADATA, {
+                        "reason": stopped, "frames": str(self.frames)})
                 self._writer.finish()
                 self._stream.flush()
                 try:
@@ -425,6 +432,8 @@ class Recording:
             raise RecordingError("no such file", file=str(self.path))
         self.profile = None
         self.truncated = False
+        # Why the run that wrote it stopped before its end, if it did (``STOPPED_METADATA``).
+        self.stopped: str | None = None
         self.metadata: dict[str, dict[str, str]] = {}
         attachments: dict[str, bytes] = {}
         try:
@@ -521,6 +530,9 @@ class Recording:
                                 current.derived.append((topic, data))
                         elif isinstance(record, Channel):
                             topics[record.id] = record.topic
+                        elif isinstance(record, Metadata):
+                            if record.name == STOPPED_METADATA:
+                                self.stopped = record.metadata.get("reason", "stopped")
                         else:  # DataEnd, Footer
                             complete = data_end = True
                 except _READ_ERRORS as exc:
@@ -543,6 +555,8 @@ class Recording:
             return
         if current is not None:
             yield current
+        if self.stopped is not None:
+            self.truncated = True  # closed properly, but short of its session's end
 
     def _decode_inputs(self, data: bytes) -> TrackerFrame:
         try:

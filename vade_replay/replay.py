@@ -84,6 +84,7 @@ class RunSummary:
     # the what-if's own changes: a default changed since (name -> recorded, now).
     physics_changed: dict = field(default_factory=dict)
     truncated: bool = False
+    stopped: str | None = None  # why the recording's run ended before its end, if it did
     # What the session allows but is most likely a slip (``Session.warnings``): of the
     # session recorded, or of a what-if's changed one.
     warnings: list[str] = field(default_factory=list)
@@ -616,17 +617,17 @@ def record(session: Session, out: str | Path, *,
         if writer.frames == 0 and target is not None:
             writer.discard()  # nothing was recorded: leave nothing behind
             raise
-        writer.close()
-        if writer.frames == 0:
-            raise
         if exc.frame is None and exc.field is None and frame is not None:
             exc.frame = frame + 1  # the frame being made when it failed
+        writer.close(stopped=exc.describe())
+        if writer.frames == 0:
+            raise
         kept = "the frame before it is" if writer.frames == 1 \
             else f"the {writer.frames} frames before it are"
         exc.message += f" ({kept} kept in {partial})"
         raise type(exc)(exc.message, file=exc.file, field=exc.field, frame=exc.frame) from None
     except BaseException as exc:
-        writer.close()
+        writer.close(stopped=_why_stopped(exc))
         if isinstance(exc, KeyboardInterrupt) and writer.frames:
             exc.add_note(_kept(writer.frames, partial))
         raise
@@ -1039,6 +1040,13 @@ def describe_miss(miss: dict) -> str:
             f"deg): {miss['cause']}")
 
 
+def _why_stopped(exc: BaseException) -> str:
+    """What a recording that stopped early keeps as its reason (``STOPPED_METADATA``)."""
+    if isinstance(exc, KeyboardInterrupt):
+        return "interrupted"
+    return f"{type(exc).__name__}: {exc}"[:500]
+
+
 def _kept(frames: int, partial: Path) -> str:
     """Where an interrupted run's frames are (``run`` prints the note)."""
     kept = "the frame written so far is" if frames == 1 \
@@ -1270,7 +1278,7 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
         if writer.frames == 0 and target is not None:
             writer.discard()  # nothing was written: leave nothing behind
             raise
-        writer.close()
+        writer.close(stopped=exc.describe())
         if writer.frames == 0:
             raise
         kept = "the regenerated frame before it is" if writer.frames == 1 \
@@ -1279,7 +1287,7 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
         raise type(exc)(exc.message, file=exc.file, field=exc.field, frame=exc.frame) from None
     except BaseException as exc:
         if writer:
-            writer.close()
+            writer.close(stopped=_why_stopped(exc))
             if isinstance(exc, KeyboardInterrupt) and writer.frames and partial is not None:
                 exc.add_note(_kept(writer.frames, partial))
         raise
@@ -1296,6 +1304,7 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     summary.match = summary.first_divergence is None
     summary.counters = dict(collision.stats)
     summary.truncated = recording.truncated
+    summary.stopped = recording.stopped
     if as_recorded:
         summary.as_recorded = restored
         if restored is None:
