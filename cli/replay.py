@@ -386,6 +386,8 @@ def _warn(path: str, summary) -> None:
     elif summary.truncated:
         print(f"warning: {path}: the recording was cut short (no end records); replayed "
               f"the {summary.frames} complete frames it holds", file=sys.stderr)
+    for warning in getattr(summary, "recorded_warnings", None) or ():
+        print(f"warning: {path}: when recorded: {warning}", file=sys.stderr)
     for warning in summary.warnings:
         what_if = "what-if: " if getattr(summary, "overrides", None) else ""
         print(f"warning: {path}: {what_if}{warning}", file=sys.stderr)

@@ -83,6 +83,13 @@ def test_a_mass_in_grams_is_warned_of_by_the_density_it_makes(tmp_path):
     summary = record(session_mod.load(path), tmp_path / "grams.mcap")
     (warning,) = [w for w in summary.warnings if ".mass" in w]
     assert warning.startswith("parts[0].mass: 250 kg in 128 cm^3 is 1.95e+06 kg/m^3")
+    # Kept in the recording: a replay of it tells them again (a reviewer of a colleague's
+    # file saw only "match").
+    assert Recording(tmp_path / "grams.mcap").warnings == []  # (read with the frames)
+    replayed = replay(Recording(tmp_path / "grams.mcap"))
+    assert replayed.match and replayed.recorded_warnings == summary.warnings
+    result = run_cli("vade-replay", str(tmp_path / "grams.mcap"))
+    assert f"warning: {tmp_path / 'grams.mcap'}: when recorded: {warning}" in result.stderr
     doc["parts"][0]["mass"] = 0.25
     path.write_text(json.dumps(doc))
     assert not [w for w in record(session_mod.load(path), tmp_path / "g.mcap").warnings

@@ -53,6 +53,8 @@ ENCODING_METADATA = "encoding"
 VALIDATED_METADATA = "validated"
 # Written when a run stops before its end (an error, Ctrl-C): why, and how many frames.
 STOPPED_METADATA = "stopped"
+# What vade-record warned of, one entry a warning ("0", "1", ...): a replay tells it again.
+WARNINGS_METADATA = "warnings"
 # What a damaged file raises from mcap and its zstd chunks (a flipped byte in a compressed
 # chunk is a ZstdError, not an McapError).
 # What the mcap library raises on a damaged or cut file (OverflowError: a chunk's compression
@@ -333,6 +335,8 @@ class RecordingWriter:
         self._writer.add_metadata("versions", package_versions())
         self._writer.add_metadata("physics", physics_metadata(scene.physics))
         self._writer.add_metadata("session", {"name": session.name, **(extra_metadata or {})})
+        # What the run warns of, kept at the end (``close``) for a replay to tell again.
+        self.warnings: list[str] = []
         # How /parts and the transforms are written (codec.derived_messages): a file without
         # this record is from before the ``changed`` encoding and lists every part.
         self._writer.add_metadata(ENCODING_METADATA, {"parts": parts_encoding})
@@ -374,6 +378,9 @@ class RecordingWriter:
             return
         try:
             try:
+                if self.warnings:
+                    self._writer.add_metadata(WARNINGS_METADATA, {
+                        str(k): text for k, text in enumerate(self.warnings)})
                 if stopped is not None:
                     self._writer.add_metadata(STOPPED_METADATA, {
                         "reason": stopped, "frames": str(self.frames)})
@@ -434,6 +441,9 @@ class Recording:
         self.truncated = False
         # Why the run that wrote it stopped before its end, if it did (``STOPPED_METADATA``).
         self.stopped: str | None = None
+        # What vade-record warned of when it made it (``WARNINGS_METADATA``), read with the
+        # frames (it is kept at the file's end).
+        self.warnings: list[str] = []
         self.metadata: dict[str, dict[str, str]] = {}
         attachments: dict[str, bytes] = {}
         try:
@@ -533,6 +543,10 @@ class Recording:
                         elif isinstance(record, Metadata):
                             if record.name == STOPPED_METADATA:
                                 self.stopped = record.metadata.get("reason", "stopped")
+                            elif record.name == WARNINGS_METADATA:
+                                self.warnings = [record.metadata[k] for k in sorted(
+                                    record.metadata, key=lambda k: int(k) if k.isdigit()
+                                    else 1 << 30)]
                         else:  # DataEnd, Footer
                             complete = data_end = True
                 except _READ_ERRORS as exc:

@@ -85,6 +85,7 @@ class RunSummary:
     physics_changed: dict = field(default_factory=dict)
     truncated: bool = False
     stopped: str | None = None  # why the recording's run ended before its end, if it did
+    recorded_warnings: list[str] = field(default_factory=list)  # what vade-record warned of
     # What the session allows but is most likely a slip (``Session.warnings``): of the
     # session recorded, or of a what-if's changed one.
     warnings: list[str] = field(default_factory=list)
@@ -601,6 +602,7 @@ def record(session: Session, out: str | Path, *,
     frame = None
     watch = TrackerWatch(session)
     writer = RecordingWriter(partial, session, scene)
+    writer.warnings = summary.warnings
     try:
         for record_ in simulate(scene, _watched(session.tracker_frames(), watch),
                                 collision=collision):
@@ -631,10 +633,10 @@ def record(session: Session, out: str | Path, *,
         if isinstance(exc, KeyboardInterrupt) and writer.frames:
             exc.add_note(_kept(writer.frames, partial))
         raise
+    if first_time is not None:
+        summary.warnings += watch.warnings(first_time)  # (kept in the file: the same list)
     writer.close(complete_as=target)
     summary.counters = dict(collision.stats)
-    if first_time is not None:
-        summary.warnings += watch.warnings(first_time)
     return summary
 
 
@@ -1305,6 +1307,7 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     summary.counters = dict(collision.stats)
     summary.truncated = recording.truncated
     summary.stopped = recording.stopped
+    summary.recorded_warnings = list(recording.warnings)
     if as_recorded:
         summary.as_recorded = restored
         if restored is None:
