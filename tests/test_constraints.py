@@ -390,17 +390,10 @@ def test_scene_warnings_number_parts_as_the_session_lists_them_and_let_parts_sta
     """The scene sorts its parts by name; a warning names the part as the session lists it
     (``parts[1]`` for the second written). A cap lying on the peg rests on a part, not in
     mid-air; the same cap 100 mm above the peg floats."""
-    from vade_replay.collision import CollisionWorld
-    from vade_replay.replay import scene_warnings
-    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
-    cap = {"name": "cap", "shape": {"type": "box", "size": [0.02, 0.02, 0.02]},
-           "density": 2700, "pose": {"position": [0.0, 0.0, 0.83]}}  # on the peg's top
-    doc["parts"].append(cap)
+    doc, cap = _peg_and_cap()
 
     def warnings():
-        session = session_mod.parse(json.dumps(doc).encode(), {}, source="s.json")
-        scene = session.build_scene()
-        return scene_warnings(scene, CollisionWorld(scene), session.doc)
+        return _scene_warnings(doc)
 
     assert warnings() == []
     cap["pose"]["position"][2] += 0.1
@@ -449,18 +442,10 @@ def test_parts_starting_inside_one_another_are_warned_of_and_parts_touching_are_
     with the depth (the first part brought in from beyond the other, away from it, stops
     that far short). A cap lying on the peg's top, or against its side, touches it: nothing.
     A cube wholly inside the peg (fcl sees a gap between nested meshes) is said too."""
-    from vade_replay.collision import CollisionWorld
-    from vade_replay.replay import scene_warnings
-    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
-    cap = {"name": "cap", "shape": {"type": "box", "size": [0.02, 0.02, 0.02]},
-           "density": 2700, "pose": {"position": [0.0, 0.0, 0.83]}}  # on the peg's top
-    doc["parts"].append(cap)
+    doc, cap = _peg_and_cap()
 
     def warnings():
-        session = session_mod.parse(json.dumps(doc).encode(), {}, source="s.json")
-        scene = session.build_scene()
-        return [w for w in scene_warnings(scene, CollisionWorld(scene), session.doc)
-                if "into each other" in w]
+        return [w for w in _scene_warnings(doc) if "into each other" in w]
 
     assert warnings() == []
     cap["pose"]["position"] = [0.03, 0.0, 0.80]  # against the peg's side
@@ -507,16 +492,11 @@ def test_parts_in_a_bore_or_a_corner_are_not_taken_for_parts_inside_one_another(
     the other's box. A pin 5 mm too fat for the bore, and the block pushed 5 mm into the
     bracket's wall, are said, with their depth (the deepest vertex inside the other's
     solid)."""
-    from vade_replay.collision import CollisionWorld
-    from vade_replay.replay import scene_warnings
     doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
 
     def overlaps(parts):
         doc["parts"] = parts
-        session = session_mod.parse(json.dumps(doc).encode(), {}, source="s.json")
-        scene = session.build_scene()
-        return [w for w in scene_warnings(scene, CollisionWorld(scene), session.doc)
-                if "into each other" in w]
+        return [w for w in _scene_warnings(doc) if "into each other" in w]
     tube = {"name": "tube", "density": 2700, "pose": {"position": [0, 0, 0.79]},
             "shape": {"type": "tube", "radius": 0.02, "inner_radius": 0.01, "height": 0.1,
                       "sections": 32}}
@@ -543,19 +523,33 @@ def test_a_part_starting_inside_a_fixed_base_is_warned_of_and_one_on_it_is_not()
     """An engineer's trial: a sleeve started 15 mm into a fixed bracket, silently. Here the
     sleeve round the shaft, 5 mm into the block: said; resting on the block round the
     shaft (its bore the shaft's size, touching it all round): nothing."""
-    from vade_replay.collision import CollisionWorld
-    from vade_replay.replay import scene_warnings
     doc = json.loads((RECORDINGS / "shaft_placed.json").read_text())
     doc["base"]["fixed"] = True
     doc["base"]["pose"] = {"position": [0.0, 0.2, 0.95]}
 
     def warnings(z):
         doc["parts"][0]["pose"] = {"position": [0.0, 0.2, z]}
-        session = session_mod.parse(json.dumps(doc).encode(), {}, source="s.json")
-        scene = session.build_scene()
-        return scene_warnings(scene, CollisionWorld(scene), session.doc)
+        return _scene_warnings(doc)
     on_block = 0.95 + 0.02 + 0.015  # the block's top, plus half the sleeve
     assert warnings(on_block) == []
     (inside,) = warnings(on_block - 0.005)
     assert inside.startswith("parts[0].pose: sleeve starts about 5 mm inside the base part "
                              "(block_with_shaft)")
+
+
+def _scene_warnings(doc) -> list[str]:
+    """What vade-record warns of the scene of ``doc`` (``replay.scene_warnings``)."""
+    from vade_replay.collision import CollisionWorld
+    from vade_replay.replay import scene_warnings
+    session = session_mod.parse(json.dumps(doc).encode(), {}, source="s.json")
+    scene = session.build_scene()
+    return scene_warnings(scene, CollisionWorld(scene), session.doc)
+
+
+def _peg_and_cap() -> tuple[dict, dict]:
+    """drop_on_table's session with a 20 mm cube, the cap, lying on the peg's top."""
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+    cap = {"name": "cap", "shape": {"type": "box", "size": [0.02, 0.02, 0.02]},
+           "density": 2700, "pose": {"position": [0.0, 0.0, 0.83]}}  # on the peg's top
+    doc["parts"].append(cap)
+    return doc, cap

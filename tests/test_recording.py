@@ -166,9 +166,9 @@ def _library_records(stream):
     """The reference for ``recording._records``: the library's reader, filtered."""
     from mcap.records import Channel, Chunk, DataEnd, Footer, Message, Metadata
     from mcap.stream_reader import StreamReader
-    for record in StreamReader(stream, emit_chunks=True).records:
-        if isinstance(record, (Chunk, Channel, Message, Metadata, DataEnd, Footer)):
-            yield record
+    for item in StreamReader(stream, emit_chunks=True).records:
+        if isinstance(item, (Chunk, Channel, Message, Metadata, DataEnd, Footer)):
+            yield item
 
 
 @pytest.mark.parametrize("golden", sorted(RECORDINGS.glob("*.mcap"))[:3], ids=lambda p: p.stem)
@@ -183,14 +183,11 @@ def test_records_outside_chunks_are_the_mcap_librarys_less_the_indexes(golden):
     assert type(ours[-1]).__name__ == "Footer"
 
 
-def test_a_file_cut_anywhere_reads_as_it_did_through_the_library(tmp_path, monkeypatch):
-    """Cut short at any byte (inside a chunk, a message index, the summary, the footer), a
-    recording gives the frames, the cut-short flag and the error it gave when the mcap
-    library read every record."""
+def _outcome(monkeypatch):
+    """``outcome(path, reader)``: the frames, the cut-short flag and the error of reading
+    ``path`` with ``reader`` in the place of ``recording._records``."""
     from vade_replay import recording as rec_module
-    from vade_replay.errors import RecordingError
-    golden = (RECORDINGS / "drop_on_table.mcap").read_bytes()
-    ours = rec_module._records
+    from vade_replay.errors import VadeError
 
     def outcome(path, reader):
         monkeypatch.setattr(rec_module, "_records", reader)
@@ -198,8 +195,19 @@ def test_a_file_cut_anywhere_reads_as_it_did_through_the_library(tmp_path, monke
             recording = Recording(path)
             frames = [(f.inputs, f.derived) for f in recording.frames()]
             return frames, recording.truncated, None
-        except RecordingError as exc:
+        except VadeError as exc:
             return None, None, exc.message
+    return outcome
+
+
+def test_a_file_cut_anywhere_reads_as_it_did_through_the_library(tmp_path, monkeypatch):
+    """Cut short at any byte (inside a chunk, a message index, the summary, the footer), a
+    recording gives the frames, the cut-short flag and the error it gave when the mcap
+    library read every record."""
+    from vade_replay import recording as rec_module
+    golden = (RECORDINGS / "drop_on_table.mcap").read_bytes()
+    ours = rec_module._records
+    outcome = _outcome(monkeypatch)
     cuts = sorted({*range(0, len(golden), len(golden) // 37), *range(len(golden) - 400,
                                                                      len(golden), 7)})
     for cut in cuts:
@@ -218,18 +226,9 @@ def test_a_file_damaged_at_any_byte_reads_as_it_did_through_the_library(tmp_path
     ``VADE_STRESS=full``: every byte (67,036 files, ~4 min)."""
     import strategies as S
     from vade_replay import recording as rec_module
-    from vade_replay.errors import VadeError
     golden = (RECORDINGS / "drop_on_table.mcap").read_bytes()
     ours = rec_module._records
-
-    def outcome(path, reader):
-        monkeypatch.setattr(rec_module, "_records", reader)
-        try:
-            recording = Recording(path)
-            frames = [(f.inputs, f.derived) for f in recording.frames()]
-            return frames, recording.truncated, None
-        except VadeError as exc:
-            return None, None, exc.message
+    outcome = _outcome(monkeypatch)
     path = tmp_path / "damaged.mcap"
     for at in range(0, len(golden), 1 if S.FULL else 61):
         for value in (golden[at] ^ 0xFF, 7):

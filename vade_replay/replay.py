@@ -616,18 +616,12 @@ def record(session: Session, out: str | Path, *,
             if on_frame:
                 on_frame(record_)
     except VadeError as exc:
-        if writer.frames == 0 and target is not None:
-            writer.discard()  # nothing was recorded: leave nothing behind
-            raise
-        if exc.frame is None and exc.field is None and frame is not None:
+        if writer.frames and exc.frame is None and exc.field is None and frame is not None:
             exc.frame = frame + 1  # the frame being made when it failed
-        writer.close(stopped=exc.describe())
-        if writer.frames == 0:
+        kept = _kept_after(writer, target, partial, exc, "")
+        if kept is None:
             raise
-        kept = "the frame before it is" if writer.frames == 1 \
-            else f"the {writer.frames} frames before it are"
-        exc.message += f" ({kept} kept in {partial})"
-        raise type(exc)(exc.message, file=exc.file, field=exc.field, frame=exc.frame) from None
+        raise kept from None
     except BaseException as exc:
         writer.close(stopped=_why_stopped(exc))
         if isinstance(exc, KeyboardInterrupt) and writer.frames:
@@ -1042,6 +1036,23 @@ def describe_miss(miss: dict) -> str:
             f"deg): {miss['cause']}")
 
 
+def _kept_after(writer: RecordingWriter, target: Path | None, partial: Path,
+                exc: VadeError, what: str) -> VadeError | None:
+    """A run that failed part way: its file closed, with why it stopped; the error to raise,
+    saying where the frames written are kept, or None to raise ``exc`` as it is (no frame
+    was written: nothing is left behind)."""
+    if writer.frames == 0 and target is not None:
+        writer.discard()
+        return None
+    writer.close(stopped=exc.describe())
+    if writer.frames == 0:
+        return None
+    kept = f"the {what}frame before it is" if writer.frames == 1 \
+        else f"the {writer.frames} {what}frames before it are"
+    exc.message += f" ({kept} kept in {partial})"
+    return type(exc)(exc.message, file=exc.file, field=exc.field, frame=exc.frame)
+
+
 def _why_stopped(exc: BaseException) -> str:
     """What a recording that stopped early keeps as its reason (``STOPPED_METADATA``)."""
     if isinstance(exc, KeyboardInterrupt):
@@ -1277,16 +1288,10 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     except VadeError as exc:
         if writer is None or partial is None:
             raise
-        if writer.frames == 0 and target is not None:
-            writer.discard()  # nothing was written: leave nothing behind
+        kept = _kept_after(writer, target, partial, exc, "regenerated ")
+        if kept is None:
             raise
-        writer.close(stopped=exc.describe())
-        if writer.frames == 0:
-            raise
-        kept = "the regenerated frame before it is" if writer.frames == 1 \
-            else f"the {writer.frames} regenerated frames before it are"
-        exc.message += f" ({kept} kept in {partial})"
-        raise type(exc)(exc.message, file=exc.file, field=exc.field, frame=exc.frame) from None
+        raise kept from None
     except BaseException as exc:
         if writer:
             writer.close(stopped=_why_stopped(exc))
