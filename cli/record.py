@@ -44,7 +44,29 @@ def main(argv: list[str] | None = None) -> int:
               f"{summary.transitions} transitions) of {session.name} to {out}")
         for miss in summary.release_misses:
             print(f"not on a constraint: {describe_miss(miss)}")
+        for line in _outcome_lines(summary.to_dict()["analysis"], session.doc):
+            print(line)
     return EXIT_OK
+
+
+def _outcome_lines(analysis: dict, doc: dict) -> list[str]:
+    """What a designer looks for first: grabs refused (a part too heavy), and parts with a
+    final pose that the run never placed."""
+    out = []
+    refused = analysis.get("refused_grabs") or {}
+    if refused:
+        who = [name for name, part in sorted(analysis["parts"].items())
+               if part.get("refused_grabs")]
+        out.append("refused grabs: " + ", ".join(f"{cause} {n}" for cause, n in
+                                                 sorted(refused.items()))
+                   + f" ({', '.join(who)})")
+    final = [str(p.get("name")) for p in doc.get("parts") or []
+             if (p.get("assembly") or {}).get("final_pose") is not None]
+    never = [name for name in final
+             if (analysis["parts"].get(name) or {}).get("placed_at_s") is None]
+    if never:
+        out.append(f"never placed: {', '.join(never)} (of {len(final)} with a final pose)")
+    return out
 
 
 def _check_output(out: Path, path: Path, session: session_mod.Session) -> None:

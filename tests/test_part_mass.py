@@ -190,3 +190,21 @@ def test_a_what_if_of_a_mass_in_grams_is_warned_of():
     assert [w for w in heavy.warnings if w.startswith("parts[0].mass: 350 kg in 128 cm^3")]
     assert replay(Recording(RECORDINGS / "drop_on_table.mcap"),
                   overrides={"parts.peg.mass": "0.35"}).warnings == []
+
+
+def test_vade_record_tells_of_refused_grabs_and_parts_never_placed(tmp_path):
+    """An engineer's trial: the summary line said "3 transitions" where a grab was refused
+    as too heavy; now a line says so, naming the part, and another names the parts with a
+    final pose that the run never placed."""
+    doc = _doc()
+    doc["parts"][0]["mass"] = 25.0
+    path = tmp_path / "heavy.json"
+    path.write_text(json.dumps(doc))
+    out = run_cli("vade-record", str(path), "-o", str(tmp_path / "heavy.mcap")).stdout
+    assert "refused grabs: too_heavy_for_two_hands 1 (peg)" in out
+    missed = run_cli("vade-record", str(RECORDINGS / "shaft_release_missed.json"), "-o",
+                     str(tmp_path / "missed.mcap")).stdout
+    assert "never placed: sleeve (of 1 with a final pose)" in missed
+    placed = run_cli("vade-record", str(RECORDINGS / "shaft_placed.json"), "-o",
+                     str(tmp_path / "placed.mcap")).stdout
+    assert "never placed" not in placed and "refused" not in placed
