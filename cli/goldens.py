@@ -190,6 +190,8 @@ def _regenerate(folder: Path, sessions: list[Path]) -> int:
                     print("a session cannot be recorded: no golden was written",
                           file=sys.stderr)
                     return EXIT_UNUSABLE
+                for warning in summary.warnings:  # (kept in the golden too)
+                    print(f"warning: {path}: {warning}", file=sys.stderr)
                 made.append((golden, new, f"{summary.frames} frames, {summary.transitions} "
                              "transitions"))
             for golden, new, counts in made:
