@@ -53,17 +53,21 @@ def _outcome_lines(analysis: dict, doc: dict) -> list[str]:
     """What a designer looks for first: grabs refused (a part too heavy), and parts with a
     final pose that the run never placed."""
     out = []
-    refused = analysis.get("refused_grabs") or {}
+    # (A hand closing on nothing is no refusal a design can answer.)
+    refused = {cause: n for cause, n in (analysis.get("refused_grabs") or {}).items()
+               if cause != "nothing_in_reach"}
     if refused:
         who = [name for name, part in sorted(analysis["parts"].items())
                if part.get("refused_grabs")]
         out.append("refused grabs: " + ", ".join(f"{cause} {n}" for cause, n in
                                                  sorted(refused.items()))
-                   + f" ({', '.join(who)})")
+                   + (f" ({', '.join(who)})" if who else ""))
     final = [str(p.get("name")) for p in doc.get("parts") or []
              if (p.get("assembly") or {}).get("final_pose") is not None]
+    parts = analysis["parts"]
     never = [name for name in final
-             if (analysis["parts"].get(name) or {}).get("placed_at_s") is None]
+             if (parts.get(name) or {}).get("placed_at_s") is None
+             and not ((parts.get(name) or {}).get("time_in_state_s") or {}).get("PLACED")]
     if never:
         out.append(f"never placed: {', '.join(never)} (of {len(final)} with a final pose)")
     return out

@@ -553,3 +553,28 @@ def _peg_and_cap() -> tuple[dict, dict]:
            "density": 2700, "pose": {"position": [0.0, 0.0, 0.83]}}  # on the peg's top
     doc["parts"].append(cap)
     return doc, cap
+
+
+def test_a_block_lying_in_an_open_tray_is_not_taken_for_one_inside_it(tmp_path):
+    """A review: a tray (a box without its top, an open mesh) given mass_properties, with a
+    block lying on its floor: the winding number of an open mesh is no inside test, so an
+    open mesh is not looked into (it warned of the block 40 mm inside the tray)."""
+    import trimesh
+    tray = trimesh.creation.box(extents=[0.3, 0.3, 0.1])
+    top = tray.face_normals[:, 2] > 0.9
+    tray.update_faces(~top)
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+    files = {"tray.stl": tray.export(file_type="stl")}
+    doc["parts"] = [
+        {"name": "tray", "shape": {"type": "mesh", "file": "tray.stl"},
+         "mass_properties": {"mass": 1.0, "center_of_mass": [0, 0, -0.03],
+                             "inertia": [[0.01, 0, 0], [0, 0.01, 0], [0, 0, 0.015]]},
+         "pose": {"position": [0.0, 0.0, 0.79]}},
+        {"name": "block", "density": 2700, "shape": {"type": "box", "size": [0.04, 0.04, 0.04]},
+         "pose": {"position": [0.0, 0.0, 0.7605]}}]
+    from vade_replay.collision import CollisionWorld
+    from vade_replay.replay import scene_warnings
+    session = session_mod.parse(json.dumps(doc).encode(), files, source="s.json")
+    scene = session.build_scene()
+    assert not [w for w in scene_warnings(scene, CollisionWorld(scene), session.doc)
+                if "into each other" in w or "inside" in w]

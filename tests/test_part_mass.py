@@ -208,3 +208,55 @@ def test_vade_record_tells_of_refused_grabs_and_parts_never_placed(tmp_path):
     placed = run_cli("vade-record", str(RECORDINGS / "shaft_placed.json"), "-o",
                      str(tmp_path / "placed.mcap")).stdout
     assert "never placed" not in placed and "refused" not in placed
+
+
+def test_a_regenerated_recording_keeps_the_warnings_and_the_early_stop(tmp_path):
+    """``vade-replay X -o Y``: Y keeps what X's run warned of (and a what-if's own), and
+    that X's run stopped early; it lost both (a review)."""
+    doc = _doc()
+    del doc["parts"][0]["density"]
+    doc["parts"][0]["mass"] = 250
+    path = tmp_path / "grams.json"
+    path.write_text(json.dumps(doc))
+    made = record(session_mod.load(path), tmp_path / "grams.mcap")
+    again = replay(Recording(tmp_path / "grams.mcap"), out=tmp_path / "again.mcap")
+    assert again.match
+    copy = Recording(tmp_path / "again.mcap")
+    list(copy.frames())
+    assert copy.warnings == made.warnings and not copy.truncated
+    from cli._common import run
+    from vade_replay.replay import record as record_session
+
+    def stop_early(argv):
+        count = 0
+
+        def stop(_record):
+            nonlocal count
+            count += 1
+            if count == 30:
+                raise KeyboardInterrupt
+        record_session(session_mod.load(path), tmp_path / "cut.mcap", on_frame=stop)
+        return 0
+    assert run(stop_early, []) == 130
+    replay(Recording(tmp_path / "cut.mcap.partial"), out=tmp_path / "cut_again.mcap")
+    cut = Recording(tmp_path / "cut_again.mcap")
+    assert len(list(cut.frames())) == 30 and cut.truncated and cut.stopped == "interrupted"
+
+
+def test_the_outcome_lines_leave_out_empty_hands_and_parts_placed_from_the_start():
+    """A hand closing on nothing is no refused grab a design answers; a part that starts
+    in its final pose (PLACED throughout, never placed by the run) is not "never placed"
+    (a review)."""
+    from cli.record import _outcome_lines
+    doc = {"parts": [{"name": "housing", "assembly": {"final_pose": {}}},
+                     {"name": "sleeve", "assembly": {"final_pose": {}}}]}
+    analysis = {"refused_grabs": {"nothing_in_reach": 2},
+                "parts": {"housing": {"placed_at_s": None, "refused_grabs": 0,
+                                      "time_in_state_s": {"PLACED": 4.0}},
+                          "sleeve": {"placed_at_s": None, "refused_grabs": 0,
+                                     "time_in_state_s": {"STATIC": 4.0}}}}
+    assert _outcome_lines(analysis, doc) == ["never placed: sleeve (of 2 with a final pose)"]
+    analysis["refused_grabs"]["too_heavy_for_one_hand"] = 1
+    analysis["parts"]["sleeve"]["refused_grabs"] = 1
+    assert _outcome_lines(analysis, doc)[0] == \
+        "refused grabs: too_heavy_for_one_hand 1 (sleeve)"
