@@ -61,6 +61,25 @@ class CliResult:
     stderr: str
 
 
+def interrupted_recording(session, out: Path, after_frames: int) -> int:
+    """Record ``session`` to ``out`` as ``vade-record`` does, Ctrl-C pressed after
+    ``after_frames`` frames: the command's exit code (130; the frames are in OUT.partial)."""
+    from cli._common import run
+    from vade_replay.replay import record
+
+    def main(argv):
+        count = 0
+
+        def stop(_record):
+            nonlocal count
+            count += 1
+            if count == after_frames:
+                raise KeyboardInterrupt
+        record(session, out, on_frame=stop)
+        return 0
+    return run(main, [])
+
+
 def run_cli(*args: str, env: dict | None = None, process: bool = False) -> CliResult:
     """Run a console command: in this process by default (fast), or as a real process.
 

@@ -73,13 +73,19 @@ def test_a_part_with_neither_density_nor_mass_is_refused_naming_both():
         _scene(doc)
 
 
-def test_a_mass_in_grams_is_warned_of_by_the_density_it_makes(tmp_path):
-    """250 written for 250 g: 250 kg in the peg's 128 cm^3 is no solid's density."""
+def _grams(tmp_path):
+    """The peg given 250 for its mass (grams meant): the document and its file."""
     doc = _doc()
     del doc["parts"][0]["density"]
     doc["parts"][0]["mass"] = 250
     path = tmp_path / "grams.json"
     path.write_text(json.dumps(doc))
+    return doc, path
+
+
+def test_a_mass_in_grams_is_warned_of_by_the_density_it_makes(tmp_path):
+    """250 written for 250 g: 250 kg in the peg's 128 cm^3 is no solid's density."""
+    doc, path = _grams(tmp_path)
     summary = record(session_mod.load(path), tmp_path / "grams.mcap")
     (warning,) = [w for w in summary.warnings if ".mass" in w]
     assert warning.startswith("parts[0].mass: 250 kg in 128 cm^3 is 1.95e+06 kg/m^3")
@@ -213,31 +219,15 @@ def test_vade_record_tells_of_refused_grabs_and_parts_never_placed(tmp_path):
 def test_a_regenerated_recording_keeps_the_warnings_and_the_early_stop(tmp_path):
     """``vade-replay X -o Y``: Y keeps what X's run warned of (and a what-if's own), and
     that X's run stopped early; it lost both (a review)."""
-    doc = _doc()
-    del doc["parts"][0]["density"]
-    doc["parts"][0]["mass"] = 250
-    path = tmp_path / "grams.json"
-    path.write_text(json.dumps(doc))
+    _, path = _grams(tmp_path)
     made = record(session_mod.load(path), tmp_path / "grams.mcap")
     again = replay(Recording(tmp_path / "grams.mcap"), out=tmp_path / "again.mcap")
     assert again.match
     copy = Recording(tmp_path / "again.mcap")
     list(copy.frames())
     assert copy.warnings == made.warnings and not copy.truncated
-    from cli._common import run
-    from vade_replay.replay import record as record_session
-
-    def stop_early(argv):
-        count = 0
-
-        def stop(_record):
-            nonlocal count
-            count += 1
-            if count == 30:
-                raise KeyboardInterrupt
-        record_session(session_mod.load(path), tmp_path / "cut.mcap", on_frame=stop)
-        return 0
-    assert run(stop_early, []) == 130
+    from conftest import interrupted_recording
+    assert interrupted_recording(session_mod.load(path), tmp_path / "cut.mcap", 30) == 130
     replay(Recording(tmp_path / "cut.mcap.partial"), out=tmp_path / "cut_again.mcap")
     cut = Recording(tmp_path / "cut_again.mcap")
     assert len(list(cut.frames())) == 30 and cut.truncated and cut.stopped == "interrupted"

@@ -306,23 +306,10 @@ def test_a_damaged_lz4_chunk_is_a_read_error():
 def test_an_interrupted_recording_says_where_its_frames_are(tmp_path, capsys):
     """Ctrl-C while recording: the frames so far are kept in OUT.partial, and the one line
     the command prints says so (exit 130)."""
-    from cli._common import run
-
+    from conftest import interrupted_recording
     session = load(RECORDINGS / "drop_on_table.json")
     out = tmp_path / "run.mcap"
-
-    def main(argv):
-        count = 0
-
-        def stop(_record):
-            nonlocal count
-            count += 1
-            if count == 10:
-                raise KeyboardInterrupt
-        record(session, out, on_frame=stop)
-        return 0
-
-    assert run(main, []) == 130
+    assert interrupted_recording(session, out, 10) == 130
     partial = tmp_path / "run.mcap.partial"
     assert capsys.readouterr().err.strip() == (
         f"interrupted; the 10 frames written so far are kept in {partial}")
