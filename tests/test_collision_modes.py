@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from _onbase import plate_scene
@@ -36,6 +37,30 @@ def test_sleeve_on_shaft_modes():
     # Down on the block (top at z = 0.02): SKIP_COAXIAL sees the block.
     down = sp.Pose((0.0, 0.0, 0.035))
     assert world.base_distance("sleeve", 0, down, CheckMode.SKIP_COAXIAL) <= TOL
+
+
+def test_a_sleeve_leaving_its_shaft_passes_the_shaft_and_not_the_block():
+    """``faces_within``: the faces a part touches as it leaves the base, which its flight
+    passes until they separate (``Flight.grace``). The sleeve just off the shaft's top (its
+    bore's bottom at the end, z 0.12) touches the shaft's side and end, every face of it
+    within the shaft's radius, and no face of the block; without those faces the base is
+    the block, whose top (z 0.02) the sleeve's bottom (0.015 below its centre) is the
+    closed-form distance from, down along the shaft, where the whole base is at 0."""
+    scene, world, _ = _sleeve_world()
+    grace = world.faces_within("sleeve", sp.Pose((0.0, 0.0, 0.135)), 2.0 * TOL)
+    corners = scene.base.vertices[scene.base.faces[list(grace)]]
+    assert len(grace) == 96 and grace == tuple(sorted(grace))  # 64 side + 32 end triangles
+    assert np.hypot(corners[..., 0], corners[..., 1]).max() <= 0.01 + 1e-12
+    assert corners[..., 2].min() >= 0.02 - 1e-12
+    for z in (0.135, 0.1, 0.08, 0.0351):
+        pose = sp.Pose((0.0, 0.0, z))
+        assert world.distance_to_base("sleeve", pose) <= TOL
+        assert world.distance_to_base("sleeve", pose, grace) == pytest.approx(
+            z - 0.015 - 0.02, abs=1e-12)
+    # Nothing touched, nothing passed: the whole base.
+    assert world.faces_within("sleeve", sp.Pose((0.0, 0.0, 0.2)), 2.0 * TOL) == ()
+    assert world.distance_to_base("sleeve", sp.Pose((0.0, 0.0, 0.2)), ()) == pytest.approx(
+        0.2 - 0.015 - 0.12, abs=1e-12)
 
 
 def test_block_on_plate_modes():

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 
 import pytest
 
@@ -122,3 +123,41 @@ def test_a_part_resting_on_a_tilted_base_stays_until_the_face_turns_over():
     transitions = _transitions(run_records(doc))
     assert ("INSPACE", "ONBASESTATIC", "landed_on_base") in transitions
     assert transitions[-1] == ("INSPACE", "ONBASESTATIC", "landed_on_base")
+
+
+@pytest.mark.parametrize("grace", ["touched", "whole_base"])
+def test_a_part_let_go_against_a_wall_falls_along_it_onto_the_plate(grace):
+    """Let go at rest 0.05 mm from the wall's inner face, its bottom 20 mm above the plate:
+    the wall cannot hold it, so it falls along the wall, never more than 0.05 mm from it.
+    The base does not stop a part until the two have separated once (a part leaving the
+    base is still touching it); with ``flight_grace`` touched (the default) that grace is
+    only for the faces it touched as it left, here the wall's, so the plate stops it. With
+    whole_base (before 2026-11-23) never clear of the wall, it fell through the plate to
+    the table."""
+    doc = _plane_block_wall(**{"tracker/devices/right_hand/2/position": [0.0, 0.30495, 1.0]})
+    del doc["parts"][0]["assembly"]
+    doc["tracker"]["devices"]["left_hand"] = [
+        {"t": 0, "position": [0.0, 0.2, 0.95], "euler_deg": [0, 0, 0], "grip": True}]
+    doc.setdefault("physics", {})["flight_grace"] = grace
+    records = run_records(doc)
+    transitions = _transitions(records)
+    assert ("INHAND", "INSPACE", "released") in transitions
+    released = next(r.frame for r in records for e in r.events if e.cause == "released")
+    if grace == "whole_base":
+        assert transitions[-1] == ("INSPACE", "STATIC", "hit_environment")
+        assert records[-1].parts[0].position[2] < 0.77  # on the table, through the plate
+        return
+    assert transitions[-1] == ("INSPACE", "ONBASESTATIC", "landed_on_base")
+    (contact,) = [e for r in records for e in r.events if e.kind == "ContactMade"]
+    assert contact.other == "plate_with_wall" and contact.cause == "hit_base_part"
+    # Free fall from rest under the scaled gravity, from its bottom at z 0.98 to within
+    # the contact tolerance (0.1 mm) of the plate's top at z 0.96.
+    g = 0.25 * 9.80665
+    t_release = records[released].time_ns * 1e-9
+    earliest, latest = (math.sqrt(2.0 * (0.02 - gap) / g) for gap in (1e-4, 0.0))
+    assert earliest - 1e-9 <= contact.time_ns * 1e-9 - t_release <= latest + 1e-9
+    for r in records[released:]:
+        x, y, z = r.parts[0].position
+        assert z - 0.02 >= 0.96 - 1e-12                # never into the plate
+        assert 0.33 - 1e-4 <= y + 0.025 <= 0.33        # along the wall, never into it
+    assert 0.96 <= records[-1].parts[0].position[2] - 0.02 <= 0.96 + 1e-4

@@ -141,6 +141,9 @@ class CollisionWorld:
                 for index, mate in enumerate(body.assembly.mates):
                     self._mates[(body.name, index)] = self._mate_geometry(body, base, mate,
                                                                          whole, identity)
+        # The base without the faces a part touched as it left it (``faces_within``), per
+        # set of faces: what stops a flying part until the two have separated once.
+        self._graced: dict[tuple[int, ...], fcl.CollisionObject | None] = {}
         self._probe = fcl.Sphere(1e-9)
         # Per (part, mate, mode): the pair of triangles that last came within the tolerance
         # (``base_distance_within``), as one-triangle BVHs.
@@ -261,23 +264,65 @@ class CollisionWorld:
         cylinder = fcl.CollisionObject(geometry.sweep, _transform(sp.Pose(center, axis_rotation)))
         return _distance(cylinder, geometry.base_rest)
 
-    def distance_to_base(self, part: str, base_from_part: sp.Pose) -> float:
-        """Distance from the part, posed in the base frame, to the whole base part."""
+    def _base_object(self, grace: tuple[int, ...] | None):
+        """The whole base, or without the faces ``grace`` lists (None where none is left)."""
+        if not grace or self._base_whole is None:
+            return self._base_whole
+        if grace not in self._graced:
+            keep = np.ones(len(self._base_faces), dtype=bool)
+            keep[list(grace)] = False
+            model = _bvh_of(self._base_vertices, self._base_faces[keep])
+            self._graced[grace] = None if model is None \
+                else fcl.CollisionObject(model, fcl.Transform())
+        return self._graced[grace]
+
+    def faces_within(self, part: str, base_from_part: sp.Pose,
+                     within: float) -> tuple[int, ...]:
+        """The base's faces (indices, ascending) within ``within`` of the posed part: the
+        faces a part touches as it leaves the base, which a flight passes while leaving
+        (``distance_to_base``'s ``grace``). Candidates by their boxes, then fcl per face."""
         if self._base_whole is None:
+            return ()
+        body = self._bodies[part]
+        points = np.array([base_from_part.apply(tuple(v)) for v in body.vertices])
+        lo, hi = points.min(axis=0) - within, points.max(axis=0) + within
+        corners = self._base_vertices[self._base_faces]  # (faces, 3 corners, 3)
+        candidates = np.nonzero(np.all(corners.min(axis=1) <= hi, axis=1)
+                                & np.all(corners.max(axis=1) >= lo, axis=1))[0]
+        obj = fcl.CollisionObject(self._model(part), _transform(base_from_part))
+        near = []
+        for index in candidates:
+            self.stats["fcl_distance_queries"] += 1
+            face = fcl.CollisionObject(
+                _bvh_of(self._base_vertices, self._base_faces[index:index + 1]),
+                fcl.Transform())
+            if _distance(obj, face) <= within:
+                near.append(int(index))
+        return tuple(near)
+
+    def distance_to_base(self, part: str, base_from_part: sp.Pose,
+                         grace: tuple[int, ...] | None = None) -> float:
+        """Distance from the part, posed in the base frame, to the whole base part; with
+        ``grace``, to the base without those faces (``inf`` where none is left)."""
+        other = self._base_object(grace)
+        if other is None:
             return float("inf")
         self.stats["fcl_distance_queries"] += 1
         return _distance(fcl.CollisionObject(self._model(part), _transform(base_from_part)),
-                         self._base_whole)
+                         other)
 
-    def base_contact_normal(self, part: str, base_from_part: sp.Pose) -> sp.Vec3 | None:
+    def base_contact_normal(self, part: str, base_from_part: sp.Pose,
+                            grace: tuple[int, ...] | None = None) -> sp.Vec3 | None:
         """Unit direction from the base's nearest point to the part's (base axes): the
-        normal of the face the part touches; None when they overlap (no nearest points)."""
-        if self._base_whole is None:
+        normal of the face the part touches (of the base without the faces ``grace``
+        lists); None when they overlap (no nearest points)."""
+        other = self._base_object(grace)
+        if other is None:
             return None
         self.stats["fcl_distance_queries"] += 1
         result = fcl.DistanceResult()
         d = fcl.distance(fcl.CollisionObject(self._model(part), _transform(base_from_part)),
-                         self._base_whole, fcl.DistanceRequest(enable_nearest_points=True),
+                         other, fcl.DistanceRequest(enable_nearest_points=True),
                          result)
         if not d > 0.0:
             return None

@@ -1120,7 +1120,7 @@ _DERIVED = {"slide_step_s": ("slide_integrator", "slide_max_step_s", "onbase_max
 # the key's other value keeps, for replaying such recordings as they were made.
 _BEFORE_THE_KEY = {"slide_onset": "sub_step", "slide_off": "frame_end",
                    "final_pose_check": "frame_end", "block_cut": "both",
-                   "block_event": "always"}
+                   "block_event": "always", "flight_grace": "whole_base"}
 
 
 def _step_in_effect(recorded: dict, bound: str, before: float):

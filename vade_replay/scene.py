@@ -68,6 +68,7 @@ SLIDE_OFFS = ("located", "frame_end")
 FINAL_POSE_CHECKS = ("path", "frame_end")
 BLOCK_CUTS = ("blamed", "both")
 BLOCK_EVENTS = ("first", "always")
+FLIGHT_GRACES = ("touched", "whole_base")
 
 
 @dataclass(frozen=True)
@@ -113,6 +114,11 @@ class Physics:
     # first: a block's ContactMade only where the block comes before the final pose in the
     # frame (a part placed first never met the obstacle); always: as before 2026-11-23
     block_event: str = "first"
+    # touched: a part that leaves the base passes only the base faces it touched as it left
+    # (within twice the contact tolerance), until the two have separated once; the rest of
+    # the base stops it. whole_base: it passes the whole base until then, as before
+    # 2026-11-23 (a sleeve coming back onto its shaft fell through the block below).
+    flight_grace: str = "touched"
     turn_integrator: str = "yoshida6"        # paper: eq. 11 once per frame
     # Longest sub-steps on the base, read through turn_step_s / slide_step_s. None: the
     # default below, or onbase_max_step_s where a session sets that (for both).
@@ -130,6 +136,7 @@ class Physics:
             ("final_pose_check", self.final_pose_check, FINAL_POSE_CHECKS),
             ("block_cut", self.block_cut, BLOCK_CUTS),
             ("block_event", self.block_event, BLOCK_EVENTS),
+            ("flight_grace", self.flight_grace, FLIGHT_GRACES),
             ("turn_integrator", self.turn_integrator, TURN_INTEGRATORS))
         for name, value, allowed in choices:
             if value not in allowed:

@@ -492,7 +492,8 @@ def _release(f: _Frame, index: int, hand: str) -> None:
             flight = free.start(t_ns=f.t_ns, cm=cm, velocity=v, omega_world=w,
                                 world_from_part=part.pose,
                                 part_from_principal=body.part_from_principal,
-                                principal_moments=body.principal_moments, base_clear=False)
+                                principal_moments=body.principal_moments, base_clear=False,
+                                grace=_grace(f, part.name, base_from_part))
             f.change_mode(index, PartState(part.name, INSPACE, part.pose, v, w, flight), flies)
             return
     near = f.collision.environment_near(cm, body.radius_about_cm + physics.contact_tolerance)
@@ -532,6 +533,16 @@ def _flight_pose(f: _Frame, body: Body, start: free.Flight, t_ns: int):
     return flight, cm, v, pose
 
 
+def _grace(f: _Frame, part: str, base_from_part: sp.Pose) -> tuple[int, ...] | None:
+    """What of the base a part leaving it at ``base_from_part`` passes until they have
+    separated once (``Flight.grace``): the faces it touches (within twice the contact
+    tolerance), or None for the whole base (``physics.flight_grace`` whole_base)."""
+    physics = f.scene.physics
+    if physics.flight_grace == "whole_base":
+        return None
+    return f.collision.faces_within(part, base_from_part, 2.0 * physics.contact_tolerance)
+
+
 def _finite(values: tuple[float, ...]) -> bool:
     """``all(map(math.isfinite, values))``; compiled, ``isinf`` and ``isnan`` are C calls
     where ``math.isfinite`` (no mypyc primitive) would be a Python call per number."""
@@ -565,18 +576,21 @@ def _fly(f: _Frame, index: int) -> None:
         + physics.contact_tolerance
     near = f.collision.environment_near(center, reach)
     base = _base_path(f, center, reach)
+    grace = None if flight.base_clear else flight.grace
     if base is not None and not flight.base_clear:
-        # Just off the base: it is no obstacle until the part has separated from it.
+        # Just off the base: what it touched as it left (the whole base, with flight_grace
+        # whole_base) is no obstacle until the part has separated from it.
         base_from_part = f.base_pose.inverse().compose(pose_b)  # type: ignore[union-attr]
         if f.collision.distance_to_base(part.name, base_from_part) > 2.0 * physics.contact_tolerance:
             moved = replace(moved, motion=replace(flight, base_clear=True))
-        base = None
+        if grace is None:
+            base = None
     elif base is None and not flight.base_clear:
         moved = replace(moved, motion=replace(flight, base_clear=True))
     if not near and base is None:
         f.parts[index] = moved
         return
-    contact = _time_of_contact(f, body, start, near, base, t_a, t_b, part.pose, pose_b)
+    contact = _time_of_contact(f, body, start, near, base, t_a, t_b, part.pose, pose_b, grace)
     if contact is None:
         f.parts[index] = moved
         return
@@ -584,9 +598,9 @@ def _fly(f: _Frame, index: int) -> None:
     if other is None:
         f.events.append(ContactMade(f.inputs.frame, part.name, Cause.HIT_BASE.value,
                                     f.scene.base.name, t_c))  # type: ignore[union-attr]
-        base_at_contact = base.at((t_c - t_a) / (t_b - t_a))  # type: ignore[union-attr]
+        base_at_contact = base.at_time(t_c)  # type: ignore[union-attr]
         base_from_part = base_at_contact.inverse().compose(pose_c)
-        normal = f.collision.base_contact_normal(part.name, base_from_part)
+        normal = f.collision.base_contact_normal(part.name, base_from_part, grace)
         up = _support(f, normal)
         if up is not None:
             _rest_on_base(f, index, base_from_part, up, Cause.LANDED_ON_BASE)
@@ -599,7 +613,8 @@ def _fly(f: _Frame, index: int) -> None:
                                moments=body.principal_moments)
         flight = free.start(t_ns=t_c, cm=cm_c, velocity=v_c, omega_world=w_c,
                             world_from_part=pose_c, part_from_principal=body.part_from_principal,
-                            principal_moments=body.principal_moments, base_clear=False)
+                            principal_moments=body.principal_moments, base_clear=False,
+                            grace=_grace(f, part.name, base_from_part))
         f.parts[index] = PartState(part.name, INSPACE, pose_c, v_c, w_c, flight)
         return
     f.events.append(ContactMade(f.inputs.frame, part.name, Cause.HIT_ENVIRONMENT.value,
@@ -647,12 +662,21 @@ class _BasePath:
     end: sp.Pose
     speed: float      # |velocity of the base origin|
     omega: float      # |angular velocity|
+    t0_ns: int = 0    # the frame's start and end (``at_time``)
+    t1_ns: int = 0
 
     def at(self, s: float) -> sp.Pose:
         p0, p1 = self.start.position, self.end.position
         return sp.Pose((p0[0] + s * (p1[0] - p0[0]), p0[1] + s * (p1[1] - p0[1]),
                         p0[2] + s * (p1[2] - p0[2])),
                        sp.slerp(self.start.rotation, self.end.rotation, s))
+
+    def at_time(self, t_ns: int) -> sp.Pose:
+        """The base at the instant ``t_ns`` of the frame: a flight that starts within the
+        frame (a part leaving the base at a fraction of it) meets the base where it is
+        then, not where it was at the frame's start."""
+        span = self.t1_ns - self.t0_ns
+        return self.at((t_ns - self.t0_ns) / span if span > 0 else 1.0)
 
 
 def _base_path(f: _Frame, center: sp.Vec3, reach: float) -> _BasePath | None:
@@ -668,15 +692,17 @@ def _base_path(f: _Frame, center: sp.Vec3, reach: float) -> _BasePath | None:
         return None
     dt = f.dt_s
     turn = sp.quat_angle_between(start.rotation, end.rotation)
-    return _BasePath(start, end, travel / dt if dt > 0 else 0.0, turn / dt if dt > 0 else 0.0)
+    return _BasePath(start, end, travel / dt if dt > 0 else 0.0, turn / dt if dt > 0 else 0.0,
+                     f.t_prev_ns, f.t_ns)
 
 
 def _time_of_contact(f: _Frame, body: Body, start: free.Flight, near: tuple[int, ...],
                      base: _BasePath | None, t_a: int, t_b: int, pose_a: sp.Pose,
-                     pose_b: sp.Pose):
+                     pose_b: sp.Pose, grace: tuple[int, ...] | None = None):
     """First time in [t_a, t_b] at which the part comes within the contact tolerance of an
     environment object or of the (moving) base part: ``(time, pose, index)``, with index
-    ``None`` for the base, or ``None`` when there is no contact.
+    ``None`` for the base, or ``None`` when there is no contact. With ``grace`` the base
+    is taken without those faces (a part that has just left it: ``Flight.grace``).
 
     Conservative advancement: at distance d no point of the part can close the gap in less
     than d / (bound on its speed relative to the obstacle), so stepping by that never passes
@@ -691,14 +717,14 @@ def _time_of_contact(f: _Frame, body: Body, start: free.Flight, near: tuple[int,
         omega_max = sp.norm(start.omega_world)
     else:
         omega_max = free.max_angular_speed(start.momentum_principal, body.principal_moments)
-    span = t_b - t_a
 
     def distance(t: int, pose: sp.Pose):
         d, which = (f.collision.distance_to_environment(body.name, pose, near) if near
                     else (float("inf"), -1))
         if base is not None:
-            base_pose = base.at((t - t_a) / span if span else 1.0)
-            d_base = f.collision.distance_to_base(body.name, base_pose.inverse().compose(pose))
+            base_pose = base.at_time(t)
+            d_base = f.collision.distance_to_base(body.name, base_pose.inverse().compose(pose),
+                                                  grace)
             if d_base < d:
                 return d_base, None
         return d, which
@@ -891,7 +917,8 @@ def _leave(f: _Frame, index: int, cause: Cause, rel: sp.Pose, v_rel: sp.Vec3,
     flight = free.start(t_ns=t_ns, cm=pose.apply(body.center_of_mass), velocity=v,
                         omega_world=w, world_from_part=pose,
                         part_from_principal=body.part_from_principal,
-                        principal_moments=body.principal_moments, base_clear=False)
+                        principal_moments=body.principal_moments, base_clear=False,
+                        grace=_grace(f, part.name, rel))
     f.change_mode(index, PartState(part.name, INSPACE, pose, v, w, flight), cause)
 
 

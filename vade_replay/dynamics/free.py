@@ -50,11 +50,16 @@ class Flight:
     # False while a part that left the base still touches it: the base does not stop it
     # until the two have separated once.
     base_clear: bool
+    # While not clear, what of the base it passes: the faces (indices) it touched as it
+    # left, the rest of the base stopping it (``physics.flight_grace`` "touched"); None:
+    # the whole base ("whole_base", as before 2026-11-23).
+    grace: tuple[int, ...] | None
 
     # Not frozen, and its own __init__: see vade_replay/frames.py (a value all the same).
     def __init__(self, t0_ns: int, cm0: sp.Vec3, v0: sp.Vec3, t_ns: int,
                  world_from_principal: sp.Quat, momentum_principal: sp.Vec3,
-                 omega_world: sp.Vec3, base_clear: bool = True) -> None:
+                 omega_world: sp.Vec3, base_clear: bool = True,
+                 grace: tuple[int, ...] | None = None) -> None:
         self.t0_ns = t0_ns
         self.cm0 = cm0
         self.v0 = v0
@@ -63,11 +68,13 @@ class Flight:
         self.momentum_principal = momentum_principal
         self.omega_world = omega_world
         self.base_clear = base_clear
+        self.grace = grace
 
 
 def start(*, t_ns: int, cm: sp.Vec3, velocity: sp.Vec3, omega_world: sp.Vec3,
           world_from_part: sp.Pose, part_from_principal: sp.Quat,
-          principal_moments: sp.Vec3, base_clear: bool = True) -> Flight:
+          principal_moments: sp.Vec3, base_clear: bool = True,
+          grace: tuple[int, ...] | None = None) -> Flight:
     """Flight state from a release: CM position and velocity, angular velocity, part pose."""
     world_from_principal = sp.quat_normalize(sp.quat_mul(world_from_part.rotation,
                                                          part_from_principal))
@@ -76,7 +83,7 @@ def start(*, t_ns: int, cm: sp.Vec3, velocity: sp.Vec3, omega_world: sp.Vec3,
                 principal_moments[1] * omega_principal[1],
                 principal_moments[2] * omega_principal[2])
     return Flight(t_ns, cm, velocity, t_ns, world_from_principal, momentum, omega_world,
-                  base_clear)
+                  base_clear, grace)
 
 
 def cm_at(flight: Flight, t_ns: int, gravity: sp.Vec3) -> tuple[sp.Vec3, sp.Vec3]:
@@ -338,7 +345,7 @@ def advance(flight: Flight, t_ns: int, *, model: str, moments: sp.Vec3, order: i
         q = sp.quat_normalize(sp.quat_mul(sp.quat_from_rotvec(sp.scale(flight.omega_world, dt)),
                                           flight.world_from_principal))
         return Flight(flight.t0_ns, flight.cm0, flight.v0, t_ns, q, flight.momentum_principal,
-                      flight.omega_world, flight.base_clear)
+                      flight.omega_world, flight.base_clear, flight.grace)
     if model == "rk4":
         q, m = rotate_rk4(flight.world_from_principal, flight.momentum_principal, dt, moments,
                           max_step_s=max_step_s)
@@ -355,7 +362,7 @@ def advance(flight: Flight, t_ns: int, *, model: str, moments: sp.Vec3, order: i
         q, m = rotate_momentum(flight.world_from_principal, flight.momentum_principal, dt,
                                moments, order=order, max_step_s=max_step_s)
     return Flight(flight.t0_ns, flight.cm0, flight.v0, t_ns, q, m, flight.omega_world,
-                  flight.base_clear)
+                  flight.base_clear, flight.grace)
 
 
 def max_angular_speed(momentum: sp.Vec3, moments: sp.Vec3) -> float:
