@@ -871,24 +871,52 @@ def _winding(vertices: np.ndarray, faces: np.ndarray, points: np.ndarray) -> np.
     return out
 
 
-# The most vertices of a part held to another's solid (``_depth_inside``).
+# The most points of a part held to another's solid (``_depth_inside``), and about how
+# many are spread over its faces besides its vertices.
 _INSIDE_POINTS = 512
+_SURFACE_POINTS = 512
+
+
+def _surface_points(vertices: np.ndarray, faces: np.ndarray, n: int) -> np.ndarray:
+    """Points spread over a mesh's faces about as far apart as ``n`` evenly spread would
+    be: the centroids of a k x k subdivision of each face, k its longest edge over that
+    spacing (at least one a face: a long thin face gets its length's worth)."""
+    tri = vertices[faces]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    total = float(area.sum())
+    if not total > 0.0:
+        return np.zeros((0, 3))
+    spacing = np.sqrt(total / n)
+    longest = np.max(np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2), axis=1)
+    ks = np.maximum(1, np.ceil(longest / spacing)).astype(int)
+    out = []
+    for k in np.unique(ks):
+        ij = [(i + 1 / 3, j + 1 / 3) for i in range(k) for j in range(k - i)] \
+            + [(i + 2 / 3, j + 2 / 3) for i in range(k - 1) for j in range(k - 1 - i)]
+        u, v = (np.array(c) / k for c in zip(*ij))
+        t = tri[ks == k]
+        out.append((t[:, None, 0] + u[None, :, None] * (t[:, None, 1] - t[:, None, 0])
+                    + v[None, :, None] * (t[:, None, 2] - t[:, None, 0])).reshape(-1, 3))
+    return np.concatenate(out) if out else np.zeros((0, 3))
 
 
 def _depth_inside(collision: CollisionWorld, body, other, *, base: bool = False) -> float:
     # (``base``: ``other`` is the base part.)
-    """How deep the deepest vertex of ``body`` lies inside ``other`` at their start poses
-    (its distance to the other's surface; 0 if none is inside): the vertices within the
-    other's box, those the other's surface winds about, each measured by fcl. A part in a
-    tube's bore or an L-bracket's corner has no vertex inside the other's solid, so it is
-    not taken for one inside it (bringing it in along a line, the first version, went
-    through the walls)."""
+    """How deep the deepest point of ``body``'s surface lies inside ``other`` at their
+    start poses (its distance to the other's surface; 0 if none is inside): its vertices
+    and points spread over its faces (``_surface_points``: two bars laid across each other
+    have no vertex in the other), those within the other's box that the other's surface
+    winds about, each measured by fcl. A part in a tube's bore or an L-bracket's corner
+    has no point inside the other's solid, so it is not taken for one inside it (bringing
+    it in along a line, the first version, went through the walls)."""
     if not _closed(other.faces):
         return 0.0  # an open mesh (a tray, a cover) has no inside to be in
     pose, there = body.initial_pose, other.initial_pose
     to_other = there.inverse().compose(pose)
     r = np.array(sp.quat_to_matrix(to_other.rotation))
-    points = body.vertices @ r.T + np.array(to_other.position)
+    points = np.concatenate([body.vertices, _surface_points(body.vertices, body.faces,
+                                                            _SURFACE_POINTS)])
+    points = points @ r.T + np.array(to_other.position)
     lo, hi = np.array(other.bbox_min), np.array(other.bbox_max)
     points = points[np.all((points > lo) & (points < hi), axis=1)]
     if len(points) == 0:
