@@ -40,16 +40,18 @@ def test_sleeve_on_shaft_modes():
 
 
 def test_a_sleeve_leaving_its_shaft_passes_the_shaft_and_not_the_block():
-    """``faces_within``: the faces a part touches as it leaves the base, which its flight
-    passes until they separate (``Flight.grace``). The sleeve just off the shaft's top (its
-    bore's bottom at the end, z 0.12) touches the shaft's side and end, every face of it
-    within the shaft's radius, and no face of the block; without those faces the base is
-    the block, whose top (z 0.02) the sleeve's bottom (0.015 below its centre) is the
-    closed-form distance from, down along the shaft, where the whole base is at 0."""
+    """``surfaces_within``: the base's surfaces a part touches as it leaves the base, which
+    its flight passes until they separate (``Flight.grace``). The sleeve just off the
+    shaft's top (its bore's bottom at the end, z 0.12) touches the shaft's side and its
+    end, every face of them within the shaft's radius, and no face of the block; without
+    them the base is the block, whose top (z 0.02) the sleeve's bottom (0.015 below its
+    centre) is the closed-form distance from, down along the shaft, where the whole base
+    is at 0."""
     scene, world, _ = _sleeve_world()
-    grace = world.faces_within("sleeve", sp.Pose((0.0, 0.0, 0.135)), 2.0 * TOL)
-    corners = scene.base.vertices[scene.base.faces[list(grace)]]
-    assert len(grace) == 96 and grace == tuple(sorted(grace))  # 64 side + 32 end triangles
+    grace = world.surfaces_within("sleeve", sp.Pose((0.0, 0.0, 0.135)), 2.0 * TOL)
+    faces = np.concatenate([world._surfaces()[i].faces for i in grace])
+    corners = scene.base.vertices[scene.base.faces[faces]]
+    assert len(grace) == 2 and len(faces) == 64 + 32  # the side, and the end's fan
     assert np.hypot(corners[..., 0], corners[..., 1]).max() <= 0.01 + 1e-12
     assert corners[..., 2].min() >= 0.02 - 1e-12
     for z in (0.135, 0.1, 0.08, 0.0351):
@@ -58,9 +60,37 @@ def test_a_sleeve_leaving_its_shaft_passes_the_shaft_and_not_the_block():
         assert world.distance_to_base("sleeve", pose, grace) == pytest.approx(
             z - 0.015 - 0.02, abs=1e-12)
     # Nothing touched, nothing passed: the whole base.
-    assert world.faces_within("sleeve", sp.Pose((0.0, 0.0, 0.2)), 2.0 * TOL) == ()
-    assert world.distance_to_base("sleeve", sp.Pose((0.0, 0.0, 0.2)), ()) == pytest.approx(
-        0.2 - 0.015 - 0.12, abs=1e-12)
+    assert world.surfaces_within("sleeve", sp.Pose((0.0, 0.0, 0.2)), 2.0 * TOL) == ()
+
+
+@pytest.mark.parametrize("max_edge", [None, 0.02, 0.005])
+def test_the_base_in_surfaces_whatever_its_tessellation(max_edge):
+    """``base_surfaces``: faces joined at folds under 30 degrees are one surface, however
+    finely cut: the block with its shaft is the block's six faces and the shaft's side and
+    two ends, also cut into triangles of at most 20 or 5 mm (up to ~9,000 faces)."""
+    import trimesh
+
+    from vade_replay.collision import base_surfaces
+    scene, _, _ = _sleeve_world()
+    vertices, faces = scene.base.vertices, scene.base.faces
+    if max_edge is not None:
+        vertices, faces = trimesh.remesh.subdivide_to_size(vertices, faces, max_edge=max_edge)
+        assert len(faces) > 2 * len(scene.base.faces)
+    labels = base_surfaces(np.asarray(vertices), np.asarray(faces))
+    assert len(np.unique(labels)) == 6 + 3
+    # Each label is its surface's least face, and each surface's faces share one normal or
+    # make the shaft's side (normals across the shaft, within its radius: a subdivided
+    # chord's midpoint lies inside the circle).
+    for label in np.unique(labels):
+        group = np.flatnonzero(labels == label)
+        assert group.min() == label
+        tri = np.asarray(vertices)[np.asarray(faces)[group]]
+        n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        n /= np.linalg.norm(n, axis=1)[:, None]
+        flat = np.all(np.abs(n - n[0]) < 1e-9)
+        side = np.all(np.abs(n[:, 2]) < 1e-9) \
+            and np.all(np.hypot(tri[..., 0], tri[..., 1]) <= 0.01 + 1e-9)
+        assert flat or side
 
 
 def test_block_on_plate_modes():

@@ -131,7 +131,8 @@ def test_a_part_let_go_against_a_wall_falls_along_it_onto_the_plate(grace):
     the wall cannot hold it, so it falls along the wall, never more than 0.05 mm from it.
     The base does not stop a part until the two have separated once (a part leaving the
     base is still touching it); with ``flight_grace`` touched (the default) that grace is
-    only for the faces it touched as it left, here the wall's, so the plate stops it. With
+    only for the surfaces it touched as it left, here the wall's (and its top, flush with
+    the block's), so the plate stops it. With
     whole_base (before 2026-11-23) never clear of the wall, it fell through the plate to
     the table."""
     doc = _plane_block_wall(**{"tracker/devices/right_hand/2/position": [0.0, 0.30495, 1.0]})
@@ -161,3 +162,49 @@ def test_a_part_let_go_against_a_wall_falls_along_it_onto_the_plate(grace):
         assert z - 0.02 >= 0.96 - 1e-12                # never into the plate
         assert 0.33 - 1e-4 <= y + 0.025 <= 0.33        # along the wall, never into it
     assert 0.96 <= records[-1].parts[0].position[2] - 0.02 <= 0.96 + 1e-4
+
+
+def test_a_part_let_go_against_a_wall_of_two_stacked_boxes_passes_the_seam():
+    """A review: the wall made of two boxes stacked (a seam at z 0.99, the lower box's top
+    inside the wall, its edge flush with the wall's face), the block let go 0.5 mm above
+    the seam. Falling along the wall it meets the seam's edge, whose direction (from an
+    edge, not a face) leans up: it used to land on it and hang on the wall. Leaving the
+    base, a part lands only on a face, so it is nudged off the seam and lands on the plate;
+    with whole_base it fell through the plate."""
+    doc = _plane_block_wall(**{"tracker/devices/right_hand/2/position": [0.0, 0.30495, 1.0105]})
+    del doc["parts"][0]["assembly"]
+    doc["tracker"]["devices"]["left_hand"] = [
+        {"t": 0, "position": [0.0, 0.2, 0.95], "euler_deg": [0, 0, 0], "grip": True}]
+    children = doc["base"]["shape"]["children"]
+    children[1] = {"type": "box", "size": [0.3, 0.02, 0.03],
+                   "pose": {"position": [0.0, 0.14, 0.025]}}
+    children.append({"type": "box", "size": [0.3, 0.02, 0.03],
+                     "pose": {"position": [0.0, 0.14, 0.055]}})
+    records = run_records(doc)
+    assert _transitions(records)[-1] == ("INSPACE", "ONBASESTATIC", "landed_on_base")
+    x, y, z = records[-1].parts[0].position
+    assert 0.96 <= z - 0.02 <= 0.96 + 1e-4            # on the plate
+    assert 0.33 - 0.01 <= y + 0.025 <= 0.33            # nudged less than 10 mm off the wall
+
+
+def test_a_block_sliding_off_a_finely_meshed_plate_falls_as_off_a_coarse_one():
+    """A review: ``plane_block_edge`` with its base the same geometry as a mesh of
+    triangles at most 5 mm across (~60,000). The flight passes the surfaces it touched as
+    it left, whole: a grace of the triangles it touched let the next ones of the plate's top
+    hold it up 7 mm beyond the edge. It falls to the table, as off the coarse plate, within
+    0.1 mm of where that one does."""
+    import trimesh
+
+    from conftest import make_session
+    doc = json.loads((RECORDINGS / "plane_block_edge.json").read_text())
+    coarse = run_records(doc)
+    scene = make_session(doc).build_scene()
+    vertices, faces = trimesh.remesh.subdivide_to_size(scene.base.vertices, scene.base.faces,
+                                                       max_edge=0.005)
+    assert len(faces) > 50_000
+    doc["base"]["shape"] = {"type": "mesh", "file": "base.stl"}
+    fine = run_records(doc, {"base.stl": trimesh.Trimesh(vertices, faces).export(
+        file_type="stl")})
+    assert _transitions(fine) == _transitions(coarse)
+    assert _transitions(fine)[-1] == ("INSPACE", "STATIC", "hit_environment")
+    assert math.dist(fine[-1].parts[0].position, coarse[-1].parts[0].position) < 1e-4

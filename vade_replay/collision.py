@@ -23,6 +23,7 @@ simulation.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from enum import Enum
 from typing import Final
@@ -89,6 +90,55 @@ class _MateGeometry:
     base_rest_faces: np.ndarray
 
 
+@dataclass(eq=False)
+class _Surface:
+    """Faces of the base joined at folds under ``_FOLD_DEG`` (``base_surfaces``), their box
+    (base axes), and their BVH once asked for."""
+
+    faces: np.ndarray
+    lo: sp.Vec3
+    hi: sp.Vec3
+    obj: fcl.CollisionObject | None = None
+
+
+# Faces meeting at a fold under this are one surface (a plane meshed finely, a cylinder's
+# side); the base's edges and corners are sharper.
+_FOLD_DEG = 30.0
+_FACE_COS = math.cos(math.radians(30.0))
+
+
+def base_surfaces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """A label per face: faces sharing an edge at a fold under ``_FOLD_DEG`` (both ways
+    round: the normals' angle) carry the same label, the least face index of their
+    surface. Smooth or flat stretches of a mesh, however finely it is cut, are one
+    surface; a box's six faces are six."""
+    n = len(faces)
+    labels = np.arange(n)
+    if n == 0:
+        return labels
+    tri = vertices[faces]
+    normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    lengths = np.linalg.norm(normals, axis=1)
+    normals = normals / np.where(lengths > 0.0, lengths, 1.0)[:, None]
+    edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]),
+                    axis=1)
+    owner = np.tile(np.arange(n), 3)
+    order = np.lexsort((edges[:, 1], edges[:, 0]))
+    edges, owner = edges[order], owner[order]
+    same = np.all(edges[1:] == edges[:-1], axis=1)
+    a, b = owner[:-1][same], owner[1:][same]
+    smooth = np.einsum("ij,ij->i", normals[a], normals[b]) >= math.cos(math.radians(_FOLD_DEG))
+    a, b = a[smooth], b[smooth]
+    while True:  # the least label along each smooth edge, until none changes
+        low = np.minimum(labels[a], labels[b])
+        before = labels.copy()
+        np.minimum.at(labels, a, low)
+        np.minimum.at(labels, b, low)
+        labels = labels[labels]
+        if np.array_equal(labels, before):
+            return labels
+
+
 # A witness pair decides "within the tolerance" only this far inside it: far above the
 # round-off of one triangle distance (fcl computes the pair's distance the same way inside
 # the whole query), far below anything physical.
@@ -141,9 +191,9 @@ class CollisionWorld:
                 for index, mate in enumerate(body.assembly.mates):
                     self._mates[(body.name, index)] = self._mate_geometry(body, base, mate,
                                                                          whole, identity)
-        # The base without the faces a part touched as it left it (``faces_within``), per
-        # set of faces: what stops a flying part until the two have separated once.
-        self._graced: dict[tuple[int, ...], fcl.CollisionObject | None] = {}
+        # The base's surfaces (``base_surfaces``), made when a part first leaves the base:
+        # a flight passes those it touched as it left until the two have separated once.
+        self._base_surfaces: list[_Surface] | None = None
         self._probe = fcl.Sphere(1e-9)
         # Per (part, mate, mode): the pair of triangles that last came within the tolerance
         # (``base_distance_within``), as one-triangle BVHs.
@@ -264,72 +314,149 @@ class CollisionWorld:
         cylinder = fcl.CollisionObject(geometry.sweep, _transform(sp.Pose(center, axis_rotation)))
         return _distance(cylinder, geometry.base_rest)
 
-    def _base_object(self, grace: tuple[int, ...] | None):
-        """The whole base, or without the faces ``grace`` lists (None where none is left)."""
-        if not grace or self._base_whole is None:
-            return self._base_whole
-        if grace not in self._graced:
-            keep = np.ones(len(self._base_faces), dtype=bool)
-            keep[list(grace)] = False
-            model = _bvh_of(self._base_vertices, self._base_faces[keep])
-            self._graced[grace] = None if model is None \
-                else fcl.CollisionObject(model, fcl.Transform())
-        return self._graced[grace]
+    def _surfaces(self) -> list[_Surface]:
+        """The base's faces in surfaces (``base_surfaces``), each with its box, built the
+        first time a part leaves the base (``surfaces_within``)."""
+        if self._base_surfaces is None:
+            labels = base_surfaces(self._base_vertices, self._base_faces)
+            order = np.argsort(labels, kind="stable")
+            starts = np.flatnonzero(np.r_[True, labels[order][1:] != labels[order][:-1]])
+            corners = self._base_vertices[self._base_faces]
+            self._base_surfaces = []
+            for group in np.split(order, starts[1:]):
+                c = corners[group].reshape(-1, 3)
+                lo, hi = c.min(axis=0), c.max(axis=0)
+                self._base_surfaces.append(_Surface(
+                    group, (float(lo[0]), float(lo[1]), float(lo[2])),
+                    (float(hi[0]), float(hi[1]), float(hi[2]))))
+        return self._base_surfaces
 
-    def faces_within(self, part: str, base_from_part: sp.Pose,
-                     within: float) -> tuple[int, ...]:
-        """The base's faces (indices, ascending) within ``within`` of the posed part: the
-        faces a part touches as it leaves the base, which a flight passes while leaving
-        (``distance_to_base``'s ``grace``). Candidates by their boxes, then fcl per face."""
+    def _surface_object(self, surface: _Surface) -> fcl.CollisionObject:
+        if surface.obj is None:
+            surface.obj = fcl.CollisionObject(
+                _bvh_of(self._base_vertices, self._base_faces[surface.faces]), fcl.Transform())
+        return surface.obj
+
+    def _part_box(self, part: str, base_from_part: sp.Pose) -> tuple[sp.Vec3, sp.Vec3]:
+        body = self._bodies[part]
+        lo, hi = body.bbox_min, body.bbox_max
+        corners = [base_from_part.apply((x, y, z)) for x in (lo[0], hi[0])
+                   for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+        return ((min(c[0] for c in corners), min(c[1] for c in corners),
+                 min(c[2] for c in corners)),
+                (max(c[0] for c in corners), max(c[1] for c in corners),
+                 max(c[2] for c in corners)))
+
+    def _nearest_surfaces(self, part: str, base_from_part: sp.Pose,
+                          grace: tuple[int, ...], within: float = float("inf")):
+        """The surfaces not in ``grace`` nearest the posed part, nearest box first, with
+        each one's box gap (a lower bound of its distance), those within ``within``."""
+        self.stats["bounding_tests"] += 1
+        lo, hi = self._part_box(part, base_from_part)
+        out = []
+        for index, surface in enumerate(self._surfaces()):
+            if index in grace:
+                continue
+            gap = math.sqrt(sum(max(0.0, surface.lo[k] - hi[k], lo[k] - surface.hi[k]) ** 2
+                                for k in range(3)))
+            if gap <= within:
+                out.append((gap, index))
+        out.sort()
+        return out
+
+    def surfaces_within(self, part: str, base_from_part: sp.Pose,
+                        within: float) -> tuple[int, ...]:
+        """The base's surfaces (``base_surfaces``: faces joined at folds under 30 degrees)
+        within ``within`` of the posed part, ascending: the surfaces a part touches as it
+        leaves the base, which its flight passes while leaving (``Flight.grace``). Whole
+        surfaces, so that a finely meshed face does not hold the part by the triangle next
+        to the one it touched."""
         if self._base_whole is None:
             return ()
-        body = self._bodies[part]
-        points = np.array([base_from_part.apply(tuple(v)) for v in body.vertices])
-        lo, hi = points.min(axis=0) - within, points.max(axis=0) + within
-        corners = self._base_vertices[self._base_faces]  # (faces, 3 corners, 3)
-        candidates = np.nonzero(np.all(corners.min(axis=1) <= hi, axis=1)
-                                & np.all(corners.max(axis=1) >= lo, axis=1))[0]
         obj = fcl.CollisionObject(self._model(part), _transform(base_from_part))
         near = []
-        for index in candidates:
+        for _, index in self._nearest_surfaces(part, base_from_part, (), within):
             self.stats["fcl_distance_queries"] += 1
-            face = fcl.CollisionObject(
-                _bvh_of(self._base_vertices, self._base_faces[index:index + 1]),
-                fcl.Transform())
-            if _distance(obj, face) <= within:
-                near.append(int(index))
-        return tuple(near)
+            if _distance(obj, self._surface_object(self._surfaces()[index])) <= within:
+                near.append(index)
+        return tuple(sorted(near))
+
+    def _graced_nearest(self, part: str, base_from_part: sp.Pose, grace: tuple[int, ...],
+                        nearest_points: bool):
+        """The distance to the base without the surfaces ``grace`` lists, and the fcl result
+        and surface of it (``inf``, None, -1 where none is left)."""
+        obj = fcl.CollisionObject(self._model(part), _transform(base_from_part))
+        best, found, which = float("inf"), None, -1
+        for gap, index in self._nearest_surfaces(part, base_from_part, grace):
+            if gap >= best:
+                break  # boxes sorted by gap: nothing farther can be nearer
+            self.stats["fcl_distance_queries"] += 1
+            result = fcl.DistanceResult()
+            d = fcl.distance(obj, self._surface_object(self._surfaces()[index]),
+                             fcl.DistanceRequest(enable_nearest_points=nearest_points), result)
+            if d < best:
+                best, found, which = d, result, index
+        return best, found, which
 
     def distance_to_base(self, part: str, base_from_part: sp.Pose,
                          grace: tuple[int, ...] | None = None) -> float:
         """Distance from the part, posed in the base frame, to the whole base part; with
-        ``grace``, to the base without those faces (``inf`` where none is left)."""
-        other = self._base_object(grace)
-        if other is None:
+        ``grace``, to the base without those surfaces (``surfaces_within``; ``inf`` where
+        none is left)."""
+        if self._base_whole is None:
             return float("inf")
+        if grace:
+            return self._graced_nearest(part, base_from_part, grace, False)[0]
         self.stats["fcl_distance_queries"] += 1
         return _distance(fcl.CollisionObject(self._model(part), _transform(base_from_part)),
-                         other)
+                         self._base_whole)
 
     def base_contact_normal(self, part: str, base_from_part: sp.Pose,
                             grace: tuple[int, ...] | None = None) -> sp.Vec3 | None:
         """Unit direction from the base's nearest point to the part's (base axes): the
-        normal of the face the part touches (of the base without the faces ``grace``
+        normal of the face the part touches (of the base without the surfaces ``grace``
         lists); None when they overlap (no nearest points)."""
-        other = self._base_object(grace)
-        if other is None:
-            return None
-        self.stats["fcl_distance_queries"] += 1
-        result = fcl.DistanceResult()
-        d = fcl.distance(fcl.CollisionObject(self._model(part), _transform(base_from_part)),
-                         other, fcl.DistanceRequest(enable_nearest_points=True),
-                         result)
+        return self.base_contact(part, base_from_part, grace)[0]
+
+    def base_contact(self, part: str, base_from_part: sp.Pose,
+                     grace: tuple[int, ...] | None = None) -> tuple[sp.Vec3 | None, bool]:
+        """``base_contact_normal``, and whether it is a face's: within 30 degrees of the
+        normal of the base triangle nearest the part, not the direction from an edge or a
+        corner (a part leaving the base along a face meets the edge of another surface
+        flush with it, a seam in a wall, at directions between the two)."""
+        if self._base_whole is None:
+            return None, False
+        faces = self._base_faces
+        if grace:
+            d, result, which = self._graced_nearest(part, base_from_part, grace, True)
+            if result is None:
+                return None, False
+            faces = faces[self._surfaces()[which].faces]
+        else:
+            self.stats["fcl_distance_queries"] += 1
+            result = fcl.DistanceResult()
+            d = fcl.distance(fcl.CollisionObject(self._model(part),
+                                                 _transform(base_from_part)),
+                             self._base_whole, fcl.DistanceRequest(enable_nearest_points=True),
+                             result)
         if not d > 0.0:
-            return None
+            return None, False
         on_part, on_base = result.nearest_points
         gap = sp.sub((float(on_part[0]), float(on_part[1]), float(on_part[2])),
                      (float(on_base[0]), float(on_base[1]), float(on_base[2])))
-        return sp.normalize(gap) if sp.norm(gap) > 0.0 else None
+        if not sp.norm(gap) > 0.0:
+            return None, False
+        normal = sp.normalize(gap)
+        on_face = False
+        if 0 <= result.b2 < len(faces):
+            a, b, c = (self._base_vertices[i] for i in faces[result.b2])
+            n = np.cross(b - a, c - a)
+            length = float(np.linalg.norm(n))
+            on_face = length > 0.0 and abs(sp.dot(normal, (float(n[0]) / length,
+                                                           float(n[1]) / length,
+                                                           float(n[2]) / length))) \
+                >= _FACE_COS
+        return normal, on_face
 
     def environment_near(self, center: sp.Vec3, radius: float) -> tuple[int, ...]:
         """Indices of environment objects whose world box a sphere can touch."""

@@ -114,10 +114,11 @@ class Physics:
     # first: a block's ContactMade only where the block comes before the final pose in the
     # frame (a part placed first never met the obstacle); always: as before 2026-11-23
     block_event: str = "first"
-    # touched: a part that leaves the base passes only the base faces it touched as it left
-    # (within twice the contact tolerance), until the two have separated once; the rest of
-    # the base stops it. whole_base: it passes the whole base until then, as before
-    # 2026-11-23 (a sleeve coming back onto its shaft fell through the block below).
+    # touched: a part that leaves the base passes only the base surfaces it touched as it
+    # left (within twice the contact tolerance; ``collision.base_surfaces``), until the two
+    # have separated once; the rest of the base stops it. whole_base: it passes the whole
+    # base until then, as before 2026-11-23 (a block let go against a wall fell along it
+    # through the plate below).
     flight_grace: str = "touched"
     turn_integrator: str = "yoshida6"        # paper: eq. 11 once per frame
     # Longest sub-steps on the base, read through turn_step_s / slide_step_s. None: the

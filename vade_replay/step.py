@@ -535,12 +535,13 @@ def _flight_pose(f: _Frame, body: Body, start: free.Flight, t_ns: int):
 
 def _grace(f: _Frame, part: str, base_from_part: sp.Pose) -> tuple[int, ...] | None:
     """What of the base a part leaving it at ``base_from_part`` passes until they have
-    separated once (``Flight.grace``): the faces it touches (within twice the contact
-    tolerance), or None for the whole base (``physics.flight_grace`` whole_base)."""
+    separated once (``Flight.grace``): the surfaces it touches (within twice the contact
+    tolerance; ``CollisionWorld.surfaces_within``), or None for the whole base
+    (``physics.flight_grace`` whole_base)."""
     physics = f.scene.physics
     if physics.flight_grace == "whole_base":
         return None
-    return f.collision.faces_within(part, base_from_part, 2.0 * physics.contact_tolerance)
+    return f.collision.surfaces_within(part, base_from_part, 2.0 * physics.contact_tolerance)
 
 
 def _finite(values: tuple[float, ...]) -> bool:
@@ -600,8 +601,10 @@ def _fly(f: _Frame, index: int) -> None:
                                     f.scene.base.name, t_c))  # type: ignore[union-attr]
         base_at_contact = base.at_time(t_c)  # type: ignore[union-attr]
         base_from_part = base_at_contact.inverse().compose(pose_c)
-        normal = f.collision.base_contact_normal(part.name, base_from_part, grace)
-        up = _support(f, normal)
+        normal, on_face = f.collision.base_contact(part.name, base_from_part, grace)
+        # Leaving the base, it lands only on a face: the edge of another surface flush
+        # with the one it leaves along (a seam) gives directions that would hold it up.
+        up = _support(f, normal) if on_face or grace is None else None
         if up is not None:
             _rest_on_base(f, index, base_from_part, up, Cause.LANDED_ON_BASE)
             return
@@ -676,7 +679,9 @@ class _BasePath:
         frame (a part leaving the base at a fraction of it) meets the base where it is
         then, not where it was at the frame's start."""
         span = self.t1_ns - self.t0_ns
-        return self.at((t_ns - self.t0_ns) / span if span > 0 else 1.0)
+        # (A flight that met the base within the last frame starts this one before it:
+        # the base is taken where it was at this frame's start, as it always was.)
+        return self.at(max(0.0, (t_ns - self.t0_ns) / span) if span > 0 else 1.0)
 
 
 def _base_path(f: _Frame, center: sp.Vec3, reach: float) -> _BasePath | None:

@@ -50,9 +50,10 @@ class Flight:
     # False while a part that left the base still touches it: the base does not stop it
     # until the two have separated once.
     base_clear: bool
-    # While not clear, what of the base it passes: the faces (indices) it touched as it
-    # left, the rest of the base stopping it (``physics.flight_grace`` "touched"); None:
-    # the whole base ("whole_base", as before 2026-11-23).
+    # While not clear, what of the base it passes: the surfaces (indices, see
+    # ``collision.base_surfaces``) it touched as it left, the rest of the base stopping it
+    # (``physics.flight_grace`` "touched"); None: the whole base ("whole_base", as before
+    # 2026-11-23).
     grace: tuple[int, ...] | None
 
     # Not frozen, and its own __init__: see vade_replay/frames.py (a value all the same).
