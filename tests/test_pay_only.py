@@ -172,19 +172,38 @@ def _pin_near_the_teeth(angle_deg: float, gap_m: float) -> dict:
     return doc
 
 
+@pytest.mark.parametrize("passing", ["block", "pass"])
 @pytest.mark.parametrize("angle", [15, 180])
-def test_a_tooth_turning_into_a_pin_within_tolerance_is_blocked(monkeypatch, angle):
+def test_a_tooth_turning_into_a_pin_within_tolerance_is_blocked(monkeypatch, angle, passing):
     """The envelope shortcut must not skip a contact: a part not touching the base at the
     frame's start is checked along its path, and a tooth coming within the tolerance of a
-    pin blocks the swing (found by a review: an earlier rule skipped it)."""
-    session = make_session(_pin_near_the_teeth(angle, 7e-5))
+    pin blocks the swing (found by a review: an earlier rule skipped it). That is
+    ``passing_contact: block``; with ``pass`` (the default since 2026-11-23) the tips,
+    which pass the pin 0.07 mm clear, are not stopped by it, and the shortcut must not
+    change that either."""
+    doc = _pin_near_the_teeth(angle, 7e-5)
+    doc.setdefault("physics", {})["passing_contact"] = passing
+    session = make_session(doc)
     fast, _ = _run(session)
     monkeypatch.setattr(step_module, "_INSIDE_ENVELOPE", False)
     slow, _ = _run(session)
     assert _values(fast) == _values(slow)
     blocked = [e for r in fast for e in r.events
                if e.kind == "ContactMade" and e.cause == "blocked_by_base"]
-    assert blocked
+    assert bool(blocked) is (passing == "block")
+
+
+@pytest.mark.parametrize("angle", [15, 180])
+def test_a_tooth_turning_into_a_pin_in_its_way_is_blocked(monkeypatch, angle):
+    """The pin 0.5 mm inside the teeth's tip circle: a tooth moves into it, passing or not,
+    and the shortcut finds it too."""
+    session = make_session(_pin_near_the_teeth(angle, -5e-4))
+    fast, _ = _run(session)
+    monkeypatch.setattr(step_module, "_INSIDE_ENVELOPE", False)
+    slow, _ = _run(session)
+    assert _values(fast) == _values(slow)
+    assert [e for r in fast for e in r.events
+            if e.kind == "ContactMade" and e.cause == "blocked_by_base"]
 
 
 @pytest.mark.parametrize("name", ["gear_pendulum", "throw_and_catch", "plane_block_edge"])

@@ -740,7 +740,7 @@ def _depth_into_base(collision: CollisionWorld, part: str, k: int, mate: cn.Mate
 
 # The approach of ``_depth_into_base``: its contact tolerance (m) and its step budget.
 _APPROACH_TOL_M = 1e-5
-_APPROACH_STEPS = 200
+_APPROACH_STEPS = 5000
 
 
 def _overlap(a: tuple[list[float], list[float]], b: tuple[list[float], list[float]]) -> float:
@@ -1148,7 +1148,8 @@ _DERIVED = {"slide_step_s": ("slide_integrator", "slide_max_step_s", "onbase_max
 # the key's other value keeps, for replaying such recordings as they were made.
 _BEFORE_THE_KEY = {"slide_onset": "sub_step", "slide_off": "frame_end",
                    "final_pose_check": "frame_end", "block_cut": "both",
-                   "block_event": "always", "flight_grace": "whole_base"}
+                   "block_event": "always", "flight_grace": "whole_base",
+                   "passing_contact": "block"}
 
 
 def _step_in_effect(recorded: dict, bound: str, before: float):

@@ -69,6 +69,7 @@ FINAL_POSE_CHECKS = ("path", "frame_end")
 BLOCK_CUTS = ("blamed", "both")
 BLOCK_EVENTS = ("first", "always")
 FLIGHT_GRACES = ("touched", "whole_base")
+PASSING_CONTACTS = ("pass", "block")
 
 
 @dataclass(frozen=True)
@@ -120,6 +121,11 @@ class Physics:
     # base until then, as before 2026-11-23 (a block let go against a wall fell along it
     # through the plate below).
     flight_grace: str = "touched"
+    # pass: a part moving on the base that comes within the contact tolerance of it without
+    # moving into it (a pin passing its bore's rim with less clearance than the tolerance)
+    # goes on to what it does move into; block: blocked there, as before 2026-11-23 (such
+    # a pin stopped at the rim, or half way down the bore).
+    passing_contact: str = "pass"
     turn_integrator: str = "yoshida6"        # paper: eq. 11 once per frame
     # Longest sub-steps on the base, read through turn_step_s / slide_step_s. None: the
     # default below, or onbase_max_step_s where a session sets that (for both).
@@ -138,6 +144,7 @@ class Physics:
             ("block_cut", self.block_cut, BLOCK_CUTS),
             ("block_event", self.block_event, BLOCK_EVENTS),
             ("flight_grace", self.flight_grace, FLIGHT_GRACES),
+            ("passing_contact", self.passing_contact, PASSING_CONTACTS),
             ("turn_integrator", self.turn_integrator, TURN_INTEGRATORS))
         for name, value, allowed in choices:
             if value not in allowed:

@@ -782,6 +782,11 @@ _STATIC_HOLD = True  # the shortcut of _slide_and_turn for a held slide (off in 
 # (GJK), so that the envelope's clearance is a safe lower bound of the part's distance.
 _ENVELOPE_MARGIN: Final = 0.01
 _CONTACT_SLACK_M: Final = 1e-9  # round-off allowance for a part moving along an obstacle it touches
+# Of the contact tolerance: a part passing what it touches (``_passing``) is stopped this
+# near anything (a fit with less radial clearance than this is held by its bore's rim);
+# coming this near within _PASS_REACH tolerances of travel, it moves into what it touches.
+_PASS_DEPTH: Final = 0.1
+_PASS_REACH: Final = 20.0
 
 
 def _to_base(f: _Frame, world: sp.Vec3) -> sp.Vec3:
@@ -1213,6 +1218,42 @@ def _stop_at_block(new: OnBase, old: OnBase, x1, a1, blame_slide: bool,
     return replace(new, clearance=0.0, clear_at=())
 
 
+def _sweep_past(f: _Frame, lam0: float, at, speed: float, distance) -> float | None:
+    """Conservative advancement along the frame's path from ``lam0`` to within
+    ``_PASS_DEPTH`` of the tolerance of the base: where, or None if nowhere. Steps are
+    short where it passes within the tolerance of something (~0.05 mm of travel at a 0.05
+    mm clearance), but none can pass through anything."""
+    deep = _PASS_DEPTH * f.scene.physics.contact_tolerance
+    lam = lam0
+    d = distance(*at(lam))
+    for _ in range(_CA_BASE_ITERATIONS):
+        if d <= deep:
+            return lam
+        step_len = (d - 0.5 * deep) / speed
+        if lam + step_len >= 1.0:
+            return 1.0 if distance(*at(1.0)) <= deep else None
+        lam += step_len
+        d = distance(*at(lam))
+    return lam if d <= deep else None
+
+
+def _passing(f: _Frame, lam: float, at, speed: float, distance) -> tuple[bool, float | None]:
+    """At a point ``lam`` of the frame's path within the contact tolerance of the base:
+    whether the part passes what it touches rather than moving into it, and where it is
+    blocked if it does. Into: it comes within ``_PASS_DEPTH`` of the tolerance of the base
+    within ``_PASS_REACH`` tolerances of travel (blocked at ``lam``, as any contact).
+    Passing: it does not (a pin passing its bore's rim with less radial clearance than the
+    tolerance stays at that clearance); it is then blocked where it first comes that near
+    anything (``_sweep_past``), or nowhere in this frame."""
+    tol = f.scene.physics.contact_tolerance
+    if distance(*at(lam)) <= _PASS_DEPTH * tol:
+        return False, lam  # already that near: along and into cannot be told apart
+    deep_at = _sweep_past(f, lam, at, speed, distance)
+    if deep_at is not None and (deep_at - lam) * speed <= _PASS_REACH * tol:
+        return False, lam
+    return True, deep_at
+
+
 def _sweep(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, x1: tuple[float, ...], a1: float):
     """SKIP_COPLANAR / SKIP_COAXIAL along the frame's path in coordinates, by conservative
     advancement: at distance d, no point of the part moves more than ``|dx| + rho |da|``
@@ -1244,6 +1285,8 @@ def _sweep(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, x1: tuple[float, ...
         return (tuple(p + lam * (q - p) for p, q in zip(x0, x1)), a0 + lam * (a1 - a0))
 
     speed = dx + mate.sweep_radius * da
+    passing = f.scene.physics.passing_contact == "pass"
+    depth = tol  # what a hit is within (a tenth of it where it passed something first)
     if speed == 0.0:
         # A move too small to measure (its square underflows): nothing can have come nearer.
         return m, None
@@ -1269,6 +1312,11 @@ def _sweep(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, x1: tuple[float, ...
             d_end = distance(x1, a1)
             hit = 0.0 if d_end < 0.5 * tol - _CONTACT_SLACK_M else None
             d = d_end
+            if hit is not None and passing:
+                passed, past = _passing(f, 0.0, at, speed, distance)
+                if passed:
+                    hit, depth = past, _PASS_DEPTH * tol
+                    d = distance(*at(1.0 if hit is None else hit))
     else:
         for _ in range(_CA_BASE_ITERATIONS):
             step_len = (d - 0.5 * tol) / speed
@@ -1286,6 +1334,12 @@ def _sweep(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, x1: tuple[float, ...
             # Out of budget (skimming along an obstacle): only a real contact blocks.
             d = distance(x1, a1)
             hit = 1.0 if d <= tol else None
+        if hit is not None and passing:
+            # Come within the tolerance of something it passes (a bore's rim), not into it?
+            passed, past = _passing(f, hit, at, speed, distance)
+            if passed:
+                hit, depth = past, _PASS_DEPTH * tol
+                d = distance(*at(1.0 if hit is None else hit))
     if hit is None:
         if turning_in_place and m.clearance > 0.0:
             return m, None  # the envelope is the same at any angle: its clearance stands
@@ -1303,8 +1357,8 @@ def _sweep(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, x1: tuple[float, ...
     blame_slide, blame_turn = bool(x0) and dx > 0.0, mate.turn and da > 0.0
     if blame_slide and blame_turn:
         xc, ac = at(hit)
-        blame_slide = distance(x1, ac) < 0.5 * tol
-        blame_turn = distance(xc, a1) < 0.5 * tol
+        blame_slide = distance(x1, ac) < 0.5 * depth
+        blame_turn = distance(xc, a1) < 0.5 * depth
         if not (blame_slide or blame_turn):
             blame_slide = blame_turn = True
     return replace(m, clearance=0.0, clear_at=()), (hit, blame_slide, blame_turn)
