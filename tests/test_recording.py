@@ -62,15 +62,20 @@ def test_new_recordings_list_only_the_parts_that_changed():
     assert listed[0] and listed[60] and listed[120] and not listed[7]
 
 
-def test_a_recording_in_the_older_full_encoding_still_replays_and_reads():
+def test_a_recording_in_the_older_full_encoding_still_replays_and_reads(tmp_path):
     """A study's files from before the ``changed`` encoding: replayed with the encoding
-    they were written in, read back to the same states as their re-recording."""
+    they were written in (and the physics defaults they were made with, ``--as-recorded``:
+    the release velocity's default changed since), read back to the same states as their
+    re-recording with those defaults."""
     from vade_replay import codec
-    from vade_replay.replay import recorded_records, replay
+    from vade_replay.replay import as_made, record, recorded_records, replay
     legacy = Recording(LEGACY)
     assert legacy.parts_encoding == codec.PARTS_FULL
-    assert replay(legacy).match
-    now = Recording(RECORDINGS / "drop_on_table.mcap")
+    assert replay(legacy, as_recorded=True).match
+    session, _ = as_made(legacy)
+    record(session, tmp_path / "again.mcap")
+    now = Recording(tmp_path / "again.mcap")
+    assert now.parts_encoding == codec.PARTS_CHANGED
     assert [(r.frame, r.parts, r.events) for r in recorded_records(legacy)] == \
         [(r.frame, r.parts, r.events) for r in recorded_records(now)]
 

@@ -37,7 +37,7 @@ def _history(rng, *, pos_std, rot_std, n=10, accel=(0.0, 0.0, 0.0), alpha=(0.0, 
 
 def test_exact_without_noise():
     history = _history(np.random.default_rng(0), pos_std=0.0, rot_std=0.0)
-    for method in ("window_fit", "two_frame"):
+    for method in ("window_fit_stops", "window_fit", "two_frame"):
         v, w = velocity.estimate(history, method=method, window=WINDOW)
         assert np.allclose(v, V_TRUE, atol=1e-9)
         assert np.allclose(w, W_TRUE, atol=1e-9)
@@ -52,13 +52,15 @@ def test_no_lag_when_the_hand_accelerates_into_the_throw():
     v_two, _ = velocity.estimate(history, method="two_frame", window=WINDOW)
     assert np.allclose(v_fit, V_TRUE, atol=1e-9)
     assert abs(v_two[2] - V_TRUE[2] + 20.0 / RATE / 2) < 1e-6
+    v_stops, _ = velocity.estimate(history, method="window_fit_stops", window=WINDOW)
+    assert np.allclose(v_stops, V_TRUE, atol=1e-9)  # the fit agrees with the last steps
 
 
 def test_window_fit_beats_two_frames_under_tracker_noise():
     # 1 mm and 0.2 degree of tracker noise, 300 throws.
     pos_std, rot_std = 1e-3, math.radians(0.2)
     rng = np.random.default_rng(42)
-    errors = {"window_fit": [[], []], "two_frame": [[], []]}
+    errors = {"window_fit": [[], []], "two_frame": [[], []], "window_fit_stops": [[], []]}
     for _ in range(300):
         history = _history(rng, pos_std=pos_std, rot_std=rot_std)
         for method in errors:
@@ -72,6 +74,47 @@ def test_window_fit_beats_two_frames_under_tracker_noise():
     assert rms["window_fit"][0] < 0.085
     assert rms["window_fit"][0] < 0.6 * rms["two_frame"][0]
     assert rms["window_fit"][1] < 0.6 * rms["two_frame"][1]
+    # A throw is not a stop: the check leaves the fit (and its noise) alone.
+    assert rms["window_fit_stops"] == rms["window_fit"]
+
+
+def _stopping_hand(rest_samples: int, rng=None, pos_std=0.0):
+    """An engineer's trial: a hand carried at (-0.67, 0.33, 0.67) m/s that stops, and rests
+    ``rest_samples`` frames before it opens; linear tracker interpolation between keyframes,
+    as vade-record makes it."""
+    v = np.array([-0.67, 0.33, 0.67])
+    q = sp.quat_from_euler_deg(0.0, 0.0, 0.0)
+    out = []
+    for k in range(12):
+        moving = min(k, 11 - rest_samples)
+        p = np.array([0.05, -0.05, 1.15]) + v * moving / RATE
+        if rng is not None:
+            p = p + rng.normal(0.0, pos_std, 3)
+        out.append((10**9 + k * 10**9 // RATE, tuple(float(x) for x in p), q))
+    return tuple(out)
+
+
+def test_a_hand_that_stops_before_it_opens_does_not_throw_the_part_back():
+    """The quadratic through the carry and the stop overshoots: window_fit read the trial's
+    hand, at rest for three frames, as moving back at 0.36 m/s. window_fit_stops takes the
+    line through the last three samples where the fit points back against the hand's way
+    over the window: zero once the hand has rested two steps."""
+    back, _ = velocity.estimate(_stopping_hand(3), method="window_fit", window=WINDOW)
+    assert np.dot(back, [-0.67, 0.33, 0.67]) < 0.0 and np.linalg.norm(back) > 0.3
+    for rest in (3, 5):
+        v, w = velocity.estimate(_stopping_hand(rest), method="window_fit_stops",
+                                 window=WINDOW)
+        assert v == (0.0, 0.0, 0.0) and w == (0.0, 0.0, 0.0)
+    # Still moving at the release: untouched.
+    moving, _ = velocity.estimate(_stopping_hand(0), method="window_fit_stops", window=WINDOW)
+    assert np.allclose(moving, [-0.67, 0.33, 0.67], atol=1e-9)
+    # With 0.3 mm of tracker noise a rested hand's part gets the noise of a 3-point line
+    # (0.7 std / dt a coordinate: ~0.02 m/s), not the overshoot.
+    rng = np.random.default_rng(5)
+    speeds = [np.linalg.norm(velocity.estimate(_stopping_hand(3, rng, 3e-4),
+                                               method="window_fit_stops", window=WINDOW)[0])
+              for _ in range(200)]
+    assert np.sqrt(np.mean(np.square(speeds))) < 0.05
 
 
 def test_duplicated_timestamps_are_skipped_not_divided_by():

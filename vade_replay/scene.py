@@ -70,6 +70,7 @@ BLOCK_CUTS = ("blamed", "both")
 BLOCK_EVENTS = ("first", "always")
 FLIGHT_GRACES = ("touched", "whole_base")
 PASSING_CONTACTS = ("pass", "block")
+RELEASE_VELOCITIES = ("window_fit_stops", "window_fit", "two_frame")
 
 
 @dataclass(frozen=True)
@@ -87,7 +88,8 @@ class Physics:
     # 1/240 s steps is 2e-6 rad at 1.9 ms.
     free_rotation_order: int = 6
     free_rotation_max_step_s: float = 1.0 / 60.0
-    release_velocity: str = "window_fit"     # paper: two_frame
+    # paper: two_frame; window_fit: the default before 2026-11-23 (no stop check)
+    release_velocity: str = "window_fit_stops"
     release_window: int = 7
     grab_radius: float = 0.05
     one_hand_max_mass_kg: float = 5.0
@@ -136,6 +138,7 @@ class Physics:
     def __post_init__(self) -> None:
         choices: tuple[tuple[str, object, tuple], ...] = (
             ("free_rotation", self.free_rotation, FREE_ROTATIONS),
+            ("release_velocity", self.release_velocity, RELEASE_VELOCITIES),
             ("free_rotation_order", self.free_rotation_order, tuple(COMPOSITIONS)),
             ("slide_integrator", self.slide_integrator, SLIDE_INTEGRATORS),
             ("slide_onset", self.slide_onset, SLIDE_ONSETS),
