@@ -23,6 +23,9 @@ def _parser() -> argparse.ArgumentParser:
                    help="output .mcap (default: the session file's name with .mcap, in the "
                         "current folder)")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
+    p.add_argument("--force", action="store_true",
+                   help="replace the output even where it holds another recording (without "
+                        "it, only the same recording made again is replaced)")
     return p
 
 
@@ -33,7 +36,7 @@ def main(argv: list[str] | None = None) -> int:
     out = Path(args.output) if args.output else Path(Path(args.session).stem + ".mcap")
     _check_output(out, Path(args.session), session)
     progress = Progress("recording", None)
-    summary = record(session, out, on_frame=progress.update)
+    summary = record(session, out, on_frame=progress.update, replace_other=args.force)
     progress.close()
     for warning in summary.warnings:
         print(f"warning: {args.session}: {warning}", file=sys.stderr)

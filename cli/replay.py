@@ -33,7 +33,11 @@ def _parser() -> argparse.ArgumentParser:
                    help="recordings written by vade-record; with several, each is checked in "
                         "turn and the exit code is the worst")
     p.add_argument("--json", action="store_true", help="print a JSON summary")
-    p.add_argument("-o", "--output", help="write the regenerated recording here")
+    p.add_argument("-o", "--output", help="write the regenerated recording here (a file "
+                                          "there that is another recording is refused "
+                                          "without --force)")
+    p.add_argument("--force", action="store_true",
+                   help="with -o, replace the output even where it holds another recording")
     p.add_argument("--set", action="append", default=[], metavar="physics.NAME=VALUE",
                    help="what-if: replay as if the session's physics said NAME: VALUE; also "
                         "tools.TOOL.FIELD=VALUE, parts.PART.constraints.NAME.FIELD=VALUE "
@@ -451,6 +455,7 @@ def _one(args, path: str, overrides: dict[str, str], outputs: dict[str, TableFil
         tables(item)
 
     summary = replay(recording, overrides=overrides, out=args.output, on_frame=on_frame,
+                     replace_other=args.force,
                      as_recorded=args.as_recorded)
     progress.close()
     _warn(path, summary)
@@ -459,6 +464,8 @@ def _one(args, path: str, overrides: dict[str, str], outputs: dict[str, TableFil
     else:
         print(_verdict(SimpleNamespace(**summary.to_dict()), overrides, path=path),
               file=_lines)
+        if args.output:
+            print(f"wrote {args.output} ({summary.frames} frames regenerated)", file=_lines)
     if "--csv" in outputs:
         _write_table(outputs["--csv"], [{**summary.to_dict(), "recording": path}])
     if args.rerun:

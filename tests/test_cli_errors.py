@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 
 from conftest import RECORDINGS, run_cli
+from vade_replay.recording import Recording
 from mcap_edit import copy_recording
 
 
@@ -178,7 +179,10 @@ def test_a_run_that_fails_part_way_keeps_what_it_recorded(tmp_path):
     (tmp_path / "log.csv").write_text(CSV + "2.5,right_hand,0,0,oops,1,0,0,0,0\n")
     out = tmp_path / "run.mcap"
     out.write_bytes(b"an older recording")
-    result = run_cli("vade-record", str(_write(tmp_path, doc)), "-o", str(out))
+    # (Not a recording of this session: without --force it is refused before the run.)
+    refused = run_cli("vade-record", str(_write(tmp_path, doc)), "-o", str(out))
+    _assert_clean_error(refused, str(out), "not a readable recording", "--force")
+    result = run_cli("vade-record", str(_write(tmp_path, doc)), "-o", str(out), "--force")
     _assert_clean_error(result, "log.csv", "line 10")
     assert out.read_bytes() == b"an older recording"  # not clobbered
     partial = tmp_path / "run.mcap.partial"
@@ -378,7 +382,7 @@ def test_o_writes_through_a_link_keeps_the_mode_and_never_over_its_input(tmp_pat
     target.chmod(0o640)
     link = tmp_path / "link.mcap"
     link.symlink_to(target)
-    result = run_cli("vade-replay", str(golden), "-o", str(link))
+    result = run_cli("vade-replay", str(golden), "-o", str(link), "--force")
     assert result.returncode == 0, result.stderr
     assert link.is_symlink() and stat.S_IMODE(target.stat().st_mode) == 0o640
     assert run_cli("vade-replay", str(target)).returncode == 0  # a complete recording
@@ -698,3 +702,32 @@ def test_a_recording_or_review_to_standard_output_is_refused_not_a_file_named_da
     _assert_clean_error(run_cli(command, str(source), option, "-"), option,
                         "writes a file, not standard output")
     assert not (tmp_path / "-").exists()
+
+
+def test_an_output_holding_another_recording_is_not_replaced_without_force(tmp_path):
+    """An engineer's trial: vade-record -o and vade-replay -o replaced a study's recording
+    of another session without a word. The same recording made again replaces it (nothing
+    is lost: a re-run of the demo); another one is refused, exit 2, the file untouched,
+    unless --force."""
+    out = tmp_path / "study1.mcap"
+    drop, throw = RECORDINGS / "drop_on_table.json", RECORDINGS / "throw_and_catch.json"
+    assert run_cli("vade-record", str(drop), "-o", str(out)).returncode == 0
+    kept = out.read_bytes()
+    assert run_cli("vade-record", str(drop), "-o", str(out)).returncode == 0  # made again
+    other = run_cli("vade-record", str(throw), "-o", str(out))
+    _assert_clean_error(other, str(out), "another session ('drop_on_table')", "--force")
+    assert out.read_bytes() == kept and not list(tmp_path.glob("*.partial"))
+    forced = run_cli("vade-record", str(throw), "-o", str(out), "--force")
+    assert forced.returncode == 0 and Recording(out).session.name == "throw_and_catch"
+    # A what-if's recording: its changed session is its own; made again, it is replaced.
+    what_if = tmp_path / "what_if.mcap"
+    args = ["vade-replay", str(out), "--set", "physics.gravity_scale_free=0.5", "-o",
+            str(what_if)]
+    first = run_cli(*args)
+    assert first.returncode == 0 and f"wrote {what_if} (181 frames regenerated)" in first.stdout
+    assert run_cli(*args).returncode == 0
+    _assert_clean_error(run_cli("vade-replay", str(out), "--set",
+                                "physics.gravity_scale_free=0.3", "-o", str(what_if)),
+                        "another recording of 'throw_and_catch' (its session or files differ)")
+    assert run_cli("vade-replay", str(out), "--set", "physics.gravity_scale_free=0.3", "-o",
+                   str(what_if), "--force").returncode == 0

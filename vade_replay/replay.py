@@ -28,7 +28,7 @@ from .collision import SKIP_COAXIAL, SKIP_COPLANAR, CollisionWorld
 from .errors import ConfigError, RecordingError, SessionError, VadeError
 from .frames import FrameRecord, TrackerFrame
 from .modes import Cause, Mode
-from .recording import (RecordedFrame, Recording, RecordingWriter,
+from .recording import (RecordedFrame, Recording, RecordingWriter, in_place,
                         partial_output, physics_metadata)
 from .scene import (LENGTH_FIELDS, PAPER_DEFAULTS, UNIT_TO_M, Scene, even_inertia_trace,
                     physics_from_doc)
@@ -582,14 +582,40 @@ class TrackerWatch:
         return out
 
 
+def refuse_replacing(out: str | Path, session: Session) -> None:
+    """``vade-record``'s and ``vade-replay -o``'s guard (``--force`` skips it): a file at
+    ``out`` is replaced only by the same recording made again (the same session and files,
+    a what-if's changes included), which loses nothing; another recording there, or a file
+    that is not one, is refused (an engineer's trial found a study's recording replaced by
+    another session's without a word)."""
+    path = Path(out)
+    if not path.exists() or in_place(path):
+        return
+    try:
+        existing = Recording(path)
+        same = existing.session.doc == session.doc and existing.session.files == session.files
+        what = f"a recording of another session ({existing.session.name!r})" \
+            if existing.session.name != session.name else \
+            f"another recording of {session.name!r} (its session or files differ)"
+    except (VadeError, OSError, ValueError):
+        same, what = False, "a file that is not a readable recording"
+    if not same:
+        raise ConfigError(f"it already holds {what}; pass --force to replace it, or choose "
+                          "another output", file=str(out))
+
+
 def record(session: Session, out: str | Path, *,
-           on_frame: Callable[[FrameRecord], None] | None = None) -> RunSummary:
+           on_frame: Callable[[FrameRecord], None] | None = None,
+           replace_other: bool = True) -> RunSummary:
     """Run a session's tracker stream and write the recording to ``out``.
 
     The file is written as ``out.partial`` and renamed when complete. If the run fails part
     way, the partial file is closed properly (readable, indexed) and kept, and the error is
-    raised with the frame it happened at.
+    raised with the frame it happened at. With ``replace_other`` False, a file at ``out``
+    other than this recording made again is refused first (``refuse_replacing``).
     """
+    if not replace_other:
+        refuse_replacing(out, session)
     partial, target = partial_output(out)
     scene = session.build_scene()
     collision = CollisionWorld(scene)
@@ -1229,7 +1255,7 @@ def as_made(recording: Recording) -> tuple[Session, dict | None]:
 def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
            out: str | Path | None = None,
            on_frame: Callable[[ReplayFrame], None] | None = None,
-           as_recorded: bool = False) -> RunSummary:
+           as_recorded: bool = False, replace_other: bool = True) -> RunSummary:
     """Replay a recording from its inputs alone and check every derived message.
 
     With ``overrides`` the scene's physics is changed first (a what-if replay); the check
@@ -1239,7 +1265,8 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     original file is never modified. With ``as_recorded`` the physics defaults are those
     the recording was made with (``as_made``), not this version's: a replay that proves an
     older recording still reproduces where a default moved since (with ``overrides``, a
-    what-if of that physics).
+    what-if of that physics). With ``replace_other`` False, a file at ``out`` other than
+    this regenerated recording made again is refused first (``refuse_replacing``).
     """
     restored = None
     session = recording.session
@@ -1267,6 +1294,8 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
         if Path(str(out) + ".partial").resolve() == recording.path.resolve():
             raise ConfigError("refusing to write over the recording being replayed (it is "
                               "this output's .partial file)", file=str(out))
+        if not replace_other:
+            refuse_replacing(out, session)
         partial, target = partial_output(out)
         # A what-if's recording embeds the changed session, so that it replays itself.
         writer = RecordingWriter(partial, session, scene,
