@@ -74,7 +74,12 @@ def _overrides(items: list[str]) -> dict[str, str]:
         if "=" not in item:
             raise ConfigError(f"--set takes NAME=VALUE, got {item!r}", field="--set")
         key, value = item.split("=", 1)
-        out[key.strip()] = value.strip()
+        key, value = key.strip(), value.strip()
+        if key in out and out[key] != value:
+            # (An engineer's trial: the last of two silently won.)
+            raise ConfigError(f"--set {key} is given twice, {out[key]} and {value}: which is "
+                              "meant?", field="--set")
+        out[key] = value
     return out
 
 

@@ -731,3 +731,35 @@ def test_an_output_holding_another_recording_is_not_replaced_without_force(tmp_p
                         "another recording of 'throw_and_catch' (its session or files differ)")
     assert run_cli("vade-replay", str(out), "--set", "physics.gravity_scale_free=0.3", "-o",
                    str(what_if), "--force").returncode == 0
+
+
+def test_a_set_given_twice_with_two_values_is_refused():
+    """An engineer's trial: the last of two --set values of one key won without a word."""
+    golden = str(RECORDINGS / "drop_on_table.mcap")
+    result = run_cli("vade-replay", golden, "--set", "physics.friction_dynamic=0.1",
+                     "--set", "physics.friction_dynamic=0.2")
+    _assert_clean_error(result, "--set physics.friction_dynamic is given twice, 0.1 and 0.2")
+    again = run_cli("vade-replay", golden, "--set", "physics.friction_dynamic=0.1",
+                    "--set", "physics.friction_dynamic=0.1")
+    assert again.returncode == 0, again.stderr  # the same value twice says one thing
+
+
+def test_messages_name_the_duplicate_part_and_a_compound_childs_field(tmp_path):
+    """An engineer's trial: 'part names must be unique' did not say which; a tube in a
+    compound base was named at base.shape.children[1].shape.inner_radius, a path the file
+    does not have."""
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+    doc["parts"].append(dict(doc["parts"][0]))
+    _assert_clean_error(run_cli("vade-record", str(_write(tmp_path, doc))),
+                        "field parts: part names must be unique: 'peg' is given to more than "
+                        "one part")
+    doc = json.loads((RECORDINGS / "shaft_placed.json").read_text())
+    doc["base"]["shape"]["children"][1] = {"type": "tube", "radius": 0.01,
+                                           "inner_radius": 0.02, "height": 0.1}
+    _assert_clean_error(run_cli("vade-record", str(_write(tmp_path, doc))),
+                        "field base.shape.children[1].inner_radius: inner_radius must be "
+                        "smaller than radius")
+    # A command-line option is named as given, not as a field.
+    result = run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"), "-o", "-")
+    assert result.returncode == 2 and "field -o" not in result.stderr \
+        and result.stderr.startswith("error: -o: ")

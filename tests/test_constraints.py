@@ -486,6 +486,27 @@ def test_a_sleeve_let_go_on_the_shafts_line_just_above_its_end_slides_onto_it(ab
     assert min(p.position[2] for r in records[78:] for p in r.parts) - 0.015 >= 0.97 - 1e-6
 
 
+def test_a_miss_beyond_the_shafts_end_says_how_far_beyond():
+    """An engineer's trial: a pin let go on its bore's line but 5 mm above it was reported
+    '1 mm and 0 deg off (tolerances 4 mm, 10 deg)', which reads as a hit. The sleeve here,
+    let go on the shaft's line with its bore 8 mm above the shaft's end (beyond the 5 mm
+    recognition distance): the miss says 8 mm beyond its end."""
+    from vade_replay.replay import describe_miss, record
+    doc = json.loads((RECORDINGS / "shaft_placed.json").read_text())
+    for kf in doc["tracker"]["devices"]["right_hand"]:
+        if kf["t"] == 1.1:
+            kf["position"] = [0.0, 0.2, 1.085 + 0.008]
+    import tempfile
+    with tempfile.TemporaryDirectory() as tmp:
+        summary = record(session_mod.parse(json.dumps(doc).encode(), {}, source="s.json"),
+                         Path(tmp) / "r.mcap")
+    (miss,) = summary.release_misses
+    assert miss["beyond_end_m"] == pytest.approx(0.008, abs=1e-9)
+    assert miss["off_distance_m"] < 1e-9
+    assert "bore_on_shaft, 8 mm beyond its end (tolerances 5 mm, 10 deg)" \
+        in describe_miss(miss)
+
+
 def test_parts_in_a_bore_or_a_corner_are_not_taken_for_parts_inside_one_another():
     """A review's cases: a pin standing in a tube's bore (0.1 mm clear), a block sitting
     in an L-bracket's inner corner (touching both faces): nothing, though each lies inside

@@ -384,3 +384,19 @@ def test_a_log_stamping_its_devices_apart_is_not_taken_for_a_jumping_hand(tmp_pa
                   f"{t + 0.001:.6f},right_hand,{4000 * t:.3f},0,900,1,0,0,0,0"]
     session = make_session(_csv_doc(), {"log.csv": "\n".join(lines).encode()})
     assert record(session, tmp_path / "offset.mcap").warnings == []
+
+
+def test_a_session_lasting_far_past_its_last_keyframe_is_warned_of():
+    """An engineer's trial: duration_s 5000 (meant 5.0) with the last keyframe at 3.5 s
+    recorded 300,001 frames without a word. Watching a part settle for a while after the
+    last keyframe is fine (10 s after 3 s); a minute past it and ten times its time is not."""
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+    last = max(kf["t"] for frames in doc["tracker"]["devices"].values() for kf in frames)
+    for duration, said in ((10.0, False), (59.0, False), (5000.0, True)):
+        doc["tracker"]["duration_s"] = duration
+        session = make_session(doc)
+        idle = [w for w in session.warnings() if w.startswith("tracker.duration_s")]
+        assert bool(idle) is said, (duration, idle)
+    assert idle == [f"tracker.duration_s: 5000 s runs {5000 - last:g} s past the last "
+                    f"keyframe (t = {last:g} s), 300,001 frames of nothing moving but what "
+                    "falls: meant less?"]

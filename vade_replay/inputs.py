@@ -160,7 +160,8 @@ def _csv_row(row: list[str], col: dict[str, int], line_no: int, *, file: str, fa
     elif grip_text in ("0", "false", "no"):
         grip = False
     else:
-        raise SessionError(f"grip must be 0/1/true/false, got {grip_text!r}", file=file,
+        raise SessionError(f"grip must be 0/1, true/false or yes/no (or empty: unknown), got "
+                           f"{grip_text!r}", file=file,
                            field=f"{where}: grip")
     return t_ns, device, DeviceSample(position, rotation, grip if device != "head" else None)
 

@@ -330,17 +330,19 @@ def _gear_mesh(radius: float, height: float, teeth: int, tooth_depth: float,
 
 
 def _mesh_from_shape(shape: dict, length_factor: float, files: dict[str, bytes], *,
-                     where: str, file: str) -> trimesh.Trimesh:
-    """The shape's triangle mesh in the body's frame, in metres."""
+                     where: str, file: str, shape_at: str | None = None) -> trimesh.Trimesh:
+    """The shape's triangle mesh in the body's frame, in metres. ``shape_at``: where the
+    shape is in the file (``WHERE.shape``, or a compound's ``...children[i]``)."""
+    at = f"{where}.shape" if shape_at is None else shape_at
     kind = shape["type"]
     f = length_factor
     if kind == "compound":
         # Several shapes, each at its own pose, as one mesh (e.g. a block with a shaft).
         meshes = []
         for i, child in enumerate(shape["children"]):
-            mesh = _mesh_from_shape(child, f, files, where=f"{where}.shape.children[{i}]",
-                                    file=file)
-            pose = pose_from_doc(child.get("pose"), f, where=f"{where}.shape.children[{i}].pose",
+            mesh = _mesh_from_shape(child, f, files, where=where, file=file,
+                                    shape_at=f"{at}.children[{i}]")
+            pose = pose_from_doc(child.get("pose"), f, where=f"{at}.children[{i}].pose",
                                  file=file)
             matrix = np.eye(4)
             matrix[:3, :3] = np.array(sp.quat_to_matrix(pose.rotation))
@@ -358,7 +360,7 @@ def _mesh_from_shape(shape: dict, length_factor: float, files: dict[str, bytes],
     if kind == "tube":
         if shape["inner_radius"] >= shape["radius"]:
             raise SessionError("inner_radius must be smaller than radius", file=file,
-                               field=f"{where}.shape.inner_radius")
+                               field=f"{at}.inner_radius")
         return trimesh.creation.annulus(r_min=shape["inner_radius"] * f, r_max=shape["radius"] * f,
                                         height=shape["height"] * f, sections=sections)
     if kind == "gear":
@@ -366,27 +368,27 @@ def _mesh_from_shape(shape: dict, length_factor: float, files: dict[str, bytes],
         inner = shape.get("inner_radius")
         if depth >= shape["radius"] or (inner and inner >= shape["radius"] - depth):
             raise SessionError("gear teeth or bore do not fit inside the radius", file=file,
-                               field=f"{where}.shape")
+                               field=f"{at}")
         return _gear_mesh(shape["radius"] * f, shape["height"] * f, int(shape["teeth"]),
                           depth * f, inner * f if inner else None)
     # A mesh file: its own units, else the session's.
     name = shape["file"]
     if name not in files:
-        raise SessionError(f"mesh file {name!r} not found", file=file, field=f"{where}.shape.file")
+        raise SessionError(f"mesh file {name!r} not found", file=file, field=f"{at}.file")
     suffix = "." + name.rsplit(".", 1)[-1].lower() if "." in name else ""
     if suffix not in MESH_TYPES:
         raise SessionError(f"unsupported mesh type {suffix!r} (use {', '.join(MESH_TYPES)})",
-                           file=file, field=f"{where}.shape.file")
+                           file=file, field=f"{at}.file")
     try:
         loaded = trimesh.load(io.BytesIO(files[name]), file_type=MESH_TYPES[suffix], force="mesh",
                               process=True)
     except Exception as exc:  # trimesh raises many types for a corrupt file
         # Named from the session that names it, as every other error of it is.
         raise SessionError(f"cannot read mesh {name!r}: {exc}", file=file,
-                           field=f"{where}.shape.file") from None
+                           field=f"{at}.file") from None
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
         raise SessionError(f"mesh file {name!r} holds no triangles", file=file,
-                           field=f"{where}.shape.file")
+                           field=f"{at}.file")
     mesh_factor = UNIT_TO_M[shape["units"]] if "units" in shape else f
     loaded.apply_scale(mesh_factor)
     return loaded
@@ -657,7 +659,10 @@ def build_scene(session: dict, files: dict[str, bytes], *, file: str = "<session
                                defaults=physics_defaults)
     names = [p["name"] for p in session["parts"]]
     if len(set(names)) != len(names):
-        raise SessionError("part names must be unique", file=file, field="parts")
+        twice = sorted({n for n in names if names.count(n) > 1})
+        raise SessionError(f"part names must be unique: {', '.join(map(repr, twice))} "
+                           f"{'is' if len(twice) == 1 else 'are'} given to more than one part",
+                           file=file, field="parts")
     shapes: dict = {}
     parts = tuple(sorted(
         (_body(doc, f, files, where=f"parts[{i}]", file=file, mode=Mode.STATIC, needs_mass=True,

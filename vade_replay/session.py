@@ -115,6 +115,11 @@ def validate(doc: object, *, file: str) -> None:
 # inches, keyframe numbers all under this were most likely written in metres.
 _METRES_LIKE = 3.0
 
+# A keyframe session lasting this long past its last keyframe, and this many times its
+# time, was most likely meant shorter (5000 for 5.0).
+_IDLE_AFTER_S = 60.0
+_IDLE_FACTOR = 10.0
+
 
 # Densities of solids a part is made of, kg/m^3: from foams (~15) to tungsten (19,300).
 _DENSITY_RANGE = (10.0, 25000.0)
@@ -347,6 +352,15 @@ class Session:
                 out.append(f"tracker.devices.{name}: {len(late)} keyframe"
                            f"{'s' if len(late) > 1 else ''} after duration_s ({end:g} s), "
                            f"never reached (first at t = {late[0]:g} s)")
+        last = max((float(kf["t"]) for frames in (tracker.get("devices") or {}).values()
+                    for kf in frames), default=None)
+        if "duration_s" in tracker and last is not None \
+                and end > max(_IDLE_AFTER_S, _IDLE_FACTOR * last):
+            # (An engineer's trial: 5000 meant 5.0 made 300,001 frames, 29 MB, without a word.)
+            rate = float(tracker.get("rate_hz", 60))
+            out.append(f"tracker.duration_s: {end:g} s runs {end - last:g} s past the last "
+                       f"keyframe (t = {last:g} s), {int(end * rate) + 1:,} frames of nothing "
+                       "moving but what falls: meant less?")
         return out
 
     def _csv_sample_gap_s(self) -> float | None:

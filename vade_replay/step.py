@@ -1563,6 +1563,13 @@ def _lift_fraction(f: _Frame, gravity: sp.Vec3, lifted) -> float:
     return hi
 
 
+def beyond_end(mate: cn.Mate, mate_index: int, snapped: sp.Pose) -> float:
+    """How far beyond the end of the base's feature (the shaft, or the bore) a part snapped
+    onto an axis constraint's line lies along it: > 0 off it, <= 0 on it (the overlap)."""
+    zeros = tuple(0.0 for _ in mate.slide_dirs)
+    return -_bore_overlap(mate, OnBase(mate_index, snapped, zeros, zeros), zeros)
+
+
 def _bore_overlap(mate: cn.Mate, m: OnBase, x: tuple[float, ...]) -> float:
     """How far the bore's span overlaps the shaft's, along the shaft (base axes)."""
     c, sign = cn.axial_offset(mate, m.base_from_snap)
