@@ -420,6 +420,11 @@ def _verdict(summary, overrides: dict[str, str], *, short: bool = False,
         text = f"what-if ({changes}): " + (
             "the recording is unchanged, " + text if summary.match
             else "departs from the recording: " + summary.first_divergence["text"])
+        event_change = getattr(summary, "first_event_change", None)
+        if not summary.match and not short:
+            text += "\nfirst change in events: " + (
+                event_change["text"] if event_change else "none (the same events, frame by "
+                                                          "frame)")
         if summary.physics_changed and not summary.match and not short:
             text += "\n" + _physics_note(summary.physics_changed, path, what_if=True)
         changes = getattr(summary, "analysis_changes", None)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -395,3 +396,26 @@ def test_the_study_table_names_each_sessions_length_unit():
     assert (row["units"], row["overrides"]) == ("m", "tools.hoist.grab_radius=0.08")
     (row,) = analysis_rows("x.mcap", {**summary, "units": "mm"})
     assert row["units"] == "mm"
+
+
+def test_a_what_if_names_its_first_change_in_events():
+    """An engineer's trial: a what-if's departure was named at a held part's velocity in
+    its last bits (frame 20) where the change that mattered came later. The first frame
+    whose events differ is named too: throw_and_catch at half the scaled gravity is not
+    caught; at frame 108 the cylinder hits the table instead."""
+    result = run_cli("vade-replay", str(RECORDINGS / "throw_and_catch.mcap"), "--set",
+                     "physics.gravity_scale_free=0.5")
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.splitlines()
+    assert lines[0].startswith("what-if (physics.gravity_scale_free=0.5): departs")
+    assert lines[1] == ("first change in events: frame 108 (t = 1.800000 s): recorded none; "
+                        "what-if ContactMade cylinder (hit_environment), ModeChanged cylinder "
+                        "(hit_environment)")
+    summary = json.loads(run_cli("vade-replay", str(RECORDINGS / "throw_and_catch.mcap"),
+                                 "--set", "physics.gravity_scale_free=0.5",
+                                 "--json").stdout)
+    assert summary["first_event_change"]["frame"] == 108
+    # A plain replay has none to name.
+    plain = json.loads(run_cli("vade-replay", str(RECORDINGS / "throw_and_catch.mcap"),
+                               "--json").stdout)
+    assert plain["first_event_change"] is None

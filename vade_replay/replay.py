@@ -78,6 +78,10 @@ class RunSummary:
     messages_checked: int = 0
     match: bool | None = None
     first_divergence: dict | None = None
+    # A what-if's first frame whose events differ from the recording's (where the change
+    # shows in what happened: the first divergence may be a held part's velocity in its
+    # last bits).
+    first_event_change: dict | None = None
     overrides: dict = field(default_factory=dict)
     counters: dict = field(default_factory=dict)
     # Physics this run used that differs from what the recording was made with, other than
@@ -1357,6 +1361,9 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
                 if divergence and summary.first_divergence is None:
                     summary.first_divergence = divergence.__dict__ | {
                         "text": divergence.describe()}
+                if applied and ours is not None and summary.first_event_change is None:
+                    summary.first_event_change = _event_change(recorded.derived, ours,
+                                                                replayed, first_time)
                 if writer:
                     writer.write_frame(replayed, derived)
                 if on_frame:
@@ -1409,6 +1416,36 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
             for name in [n for n in summary.physics_changed if n in restored]:
                 del summary.physics_changed[name]
     return summary
+
+
+def _event_change(recorded: list[tuple[str, bytes]], ours: list[tuple[str, bytes]],
+                  replayed: FrameRecord, first_time_ns: int | None) -> dict | None:
+    """Where a what-if's frame's events differ from the recording's: the frame, and what
+    each run had (kind, part, cause); None where they are the same."""
+    def events(messages):
+        return [(topic, data) for topic, data in messages
+                if topic.startswith(codec.EVENT_TOPIC_PREFIX)]
+    theirs, mine = events(recorded), events(ours)
+    if theirs == mine:
+        return None
+
+    def listed(messages) -> str:
+        out = []
+        for topic, data in messages:
+            try:
+                d = json.loads(data)
+                out.append(f"{topic[len(codec.EVENT_TOPIC_PREFIX):]} {d.get('part')} "
+                           f"({d.get('cause')})")
+            except (ValueError, AttributeError):
+                out.append(topic[len(codec.EVENT_TOPIC_PREFIX):])
+        return ", ".join(out) or "none"
+    before, after = listed(theirs), listed(mine)
+    t = (replayed.time_ns - (replayed.time_ns if first_time_ns is None else first_time_ns)) / 1e9
+    text = f"frame {replayed.frame} (t = {t:.6f} s): recorded {before}; what-if {after}"
+    if before == after:
+        text += " (the same events, other values)"
+    return {"frame": replayed.frame, "time_s": t, "recorded": before, "what_if": after,
+            "text": text}
 
 
 def recorded_record(frame: RecordedFrame, previous: FrameRecord | None = None) -> FrameRecord:
