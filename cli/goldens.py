@@ -60,7 +60,11 @@ def _check(path: Path, golden: Path) -> tuple[str, str]:
     recording = Recording(golden)
     changed = stale(session, recording)
     if changed is not None:
-        return "stale", (f"STALE: {path} changed since its golden was made ({changed}); "
+        # (A file the session names that changed is named as what changed, not the
+        # session file, which did not: an engineer's trial.)
+        what = path if not changed.startswith("file ") else \
+            f"{changed.split()[1]} (named by {path})"
+        return "stale", (f"STALE: {what} changed since its golden was made ({changed}); "
                          f"regenerate it with vade-goldens --dir {path.parent} {path.stem}")
     summary = replay(recording)
     if summary.truncated:
@@ -128,6 +132,9 @@ def main(argv: list[str] | None = None) -> int:
     sessions = sorted(folder.glob("*.json"))
     if not sessions:
         raise ConfigError("holds no session files (*.json)", file=str(folder), field="--dir")
+    # A session by its name or its file's (``drop_on_table`` or ``drop_on_table.json``,
+    # or a path to it in the folder).
+    args.names = [Path(n).stem if n.endswith(".json") else n for n in args.names]
     unknown = sorted(set(args.names) - {s.stem for s in sessions})
     if unknown:
         raise ConfigError(f"no session named {', '.join(unknown)} (have "

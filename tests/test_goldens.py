@@ -260,3 +260,22 @@ def test_a_session_that_fails_while_it_is_recorded_leaves_every_golden_as_it_was
     assert "Traceback" not in result.stderr
     assert {p.name: p.read_bytes() for p in tmp_path.glob("*.mcap")} == before
     assert not list(tmp_path.glob(".*.new"))
+
+
+def test_a_golden_whose_tracker_log_changed_names_the_log_and_takes_the_file_name(tmp_path):
+    """An engineer's trial: with only the CSV log edited, STALE named the session file as
+    changed; and ``vade-goldens --check csvsess.json`` said there was no session named
+    csvsess.json. The log is named as what changed, and a session is found by its name or
+    its file's."""
+    from conftest import run_cli
+    from test_session import CSV, _csv_doc
+    (tmp_path / "csvsess.json").write_text(json.dumps(_csv_doc()))
+    (tmp_path / "log.csv").write_text(CSV)
+    assert run_cli("vade-goldens", "--dir", str(tmp_path), "csvsess.json").returncode == 0
+    assert run_cli("vade-goldens", "--check", "--dir", str(tmp_path),
+                   "csvsess.json").returncode == 0
+    (tmp_path / "log.csv").write_text(CSV.replace("2.000,right_hand", "2.500,right_hand"))
+    result = run_cli("vade-goldens", "--check", "--dir", str(tmp_path), "csvsess")
+    assert result.returncode == 1
+    assert (f"STALE: log.csv (named by {tmp_path / 'csvsess.json'}) changed since its golden "
+            "was made (file log.csv is not the one the golden was made with)") in result.stdout
