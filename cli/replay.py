@@ -14,7 +14,8 @@ from typing import Iterator, TextIO
 
 from vade_replay.errors import ConfigError
 from vade_replay.recording import Recording, ensure_writable
-from vade_replay.replay import ANALYSIS_COLUMNS, analysis_rows, describe_miss, replay
+from vade_replay.replay import (ANALYSIS_COLUMNS, analysis_rows, apply_overrides,
+                                describe_miss, replay)
 from vade_replay.tables import FRAME_TABLES, STDOUT, FrameTables, TableError, TableFile
 
 from vade_replay.errors import VadeError
@@ -37,7 +38,9 @@ def _parser() -> argparse.ArgumentParser:
                                           "there that is another recording is refused "
                                           "without --force)")
     p.add_argument("--force", action="store_true",
-                   help="with -o, replace the output even where it holds another recording")
+                   help="replace outputs even where they hold something else (-o: another "
+                        "recording; a table or --rerun: a file that is not one vade-replay "
+                        "wrote there)")
     p.add_argument("--set", action="append", default=[], metavar="physics.NAME=VALUE",
                    help="what-if: replay as if the session's physics said NAME: VALUE; also "
                         "tools.TOOL.FIELD=VALUE, parts.PART.constraints.NAME.FIELD=VALUE "
@@ -83,9 +86,26 @@ def _overrides(items: list[str]) -> dict[str, str]:
     return out
 
 
+def _once_each(paths: list[str]) -> list[str]:
+    """The recordings, each path once (overlapping globs, ``a.mcap ./a.mcap``; links are
+    their own names): a study's table counted one twice without a word (a researcher's
+    trial)."""
+    seen: dict[str, str] = {}
+    out = []
+    for path in paths:
+        key = path if _is_stdout(path) else os.path.abspath(path)
+        if key in seen:
+            print(f"warning: {path} is {seen[key]} again: replayed once", file=sys.stderr)
+            continue
+        seen[key] = path
+        out.append(path)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     # Files and options in any order (a study's files after --csv OUT.csv, say).
     args = _parser().parse_intermixed_args(argv)
+    args.recordings = _once_each(args.recordings)
     overrides = _overrides(args.set)
     if args.spawn and not args.rerun:
         raise ConfigError("--spawn opens the review: give --rerun OUT.rrd too", field="--spawn")
@@ -113,6 +133,7 @@ def _main(args, overrides: dict[str, str]) -> int:
     if len(args.recordings) > 1 and (args.output or args.rerun):
         raise ConfigError("-o and --rerun take one recording at a time",
                           field="-o" if args.output else "--rerun")
+    _check_physics_overrides(args.recordings, overrides)
     # The tables are opened (as temporary files beside them) before any replay, so that a
     # study's batch fails at once on one it cannot write; they replace their paths only
     # when the whole run is done.
@@ -132,6 +153,24 @@ def _main(args, overrides: dict[str, str]) -> int:
     finally:
         for table in outputs.values():
             table.discard()
+
+
+def _check_physics_overrides(recordings: list[str], overrides: dict[str, str]) -> None:
+    """A ``--set physics.NAME`` that no session can take (an unknown name, a bad value) is
+    one error before anything is written, not one per recording in a study's table (an
+    engineer's trial: a typo replaced a good study table with error rows, and printed its
+    message once per file). Checked against the first recording that reads; the others,
+    and the parts' and tools' keys, are checked as each is replayed."""
+    physics = {k: v for k, v in overrides.items() if k.startswith("physics.")}
+    if not physics:
+        return
+    for path in recordings:
+        try:
+            session = Recording(path).session
+        except (VadeError, OSError):
+            continue  # reported as its own replay fails
+        apply_overrides(session, physics)
+        return
 
 
 # Where the run's own lines go: standard output, unless a table is written there (``-``).
@@ -156,6 +195,35 @@ def _check_output_paths(args) -> None:
                 raise ConfigError(f"refusing to write {what} to {place}, which is also "
                                   f"{other}", field=option)
         others.append((option, [given]))
+        if not args.force and not _is_stdout(given) and option != "-o":
+            _refuse_replacing_other(given, option)
+
+
+# What a file an output replaces must begin with: what vade-replay writes there (a table's
+# header, a rerun recording's magic). Anything else (a recording, a session) is refused
+# without --force: an engineer's trial found --csv over a participant's recording replacing
+# it with a table.
+_OUTPUT_STARTS = {"--csv": b"recording,", "--events": b"recording,", "--poses": b"recording,",
+                  "--rerun": b"RRF"}
+
+
+def _refuse_replacing_other(path: str, option: str) -> None:
+    where = Path(path)
+    try:
+        if not where.is_file() or where.stat().st_size == 0:
+            return
+        with open(where, "rb") as stream:
+            head = stream.read(16)
+    except OSError:
+        return  # unreadable: writing it says why (ensure_writable)
+    if head.startswith(_OUTPUT_STARTS[option]):
+        return
+    what = "a recording" if head.startswith(b"\x89MCAP") else \
+        "a JSON file (a session?)" if head.lstrip().startswith((b"{", b"[")) else \
+        ("a rerun recording" if head.startswith(b"RRF") else "another file")
+    kind = "review" if option == "--rerun" else "table"
+    raise ConfigError(f"{path} holds {what}, not a {kind} vade-replay wrote; pass --force to "
+                      "replace it, or choose another file", field=option)
 
 
 def _where(path: str) -> Path:
@@ -425,6 +493,14 @@ def _verdict(summary, overrides: dict[str, str], *, short: bool = False,
             text += "\nfirst change in events: " + (
                 event_change["text"] if event_change else "none (the same events, frame by "
                                                           "frame)")
+        elif not summary.match:
+            # One line a recording of a study: what changed in what happened, in brief (the
+            # first divergence may be a held part's velocity in its last bits).
+            changes = getattr(summary, "analysis_changes", None)
+            text += "; " + (f"events from frame {event_change['frame']}" if event_change
+                            else "the same events")
+            if changes is not None:
+                text += "; analysis " + ("changed" if changes else "unchanged")
         if summary.physics_changed and not summary.match and not short:
             text += "\n" + _physics_note(summary.physics_changed, path, what_if=True)
         changes = getattr(summary, "analysis_changes", None)

@@ -251,13 +251,13 @@ def test_frame_tables_refuse_other_outputs_and_are_not_left_by_a_failed_run(tmp_
     # is kept as it was), and the regenerated recording is kept only as .partial.
     damaged = _damaged(tmp_path)
     events, kept = tmp_path / "events.csv", tmp_path / "kept.csv"
-    kept.write_text("an older table\n")
+    kept.write_text("recording,an older table\n")
     regenerated = tmp_path / "regenerated.mcap"
     result = run_cli("vade-replay", str(damaged), "--events", str(events), "--poses", str(kept),
                      "-o", str(regenerated))
     assert result.returncode == 2 and "damaged" in result.stderr
     assert "120 regenerated frames before it are kept in" in result.stderr
-    assert not events.exists() and kept.read_text() == "an older table\n"
+    assert not events.exists() and kept.read_text() == "recording,an older table\n"
     assert not regenerated.exists() and (tmp_path / "regenerated.mcap.partial").exists()
     partial = Recording(tmp_path / "regenerated.mcap.partial")
     assert len(list(partial.frames())) == 120 and partial.truncated

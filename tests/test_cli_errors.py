@@ -763,3 +763,52 @@ def test_messages_name_the_duplicate_part_and_a_compound_childs_field(tmp_path):
     result = run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"), "-o", "-")
     assert result.returncode == 2 and "field -o" not in result.stderr \
         and result.stderr.startswith("error: -o: ")
+
+
+def test_tables_and_reviews_do_not_replace_what_vade_replay_did_not_write(tmp_path):
+    """A researcher's trial: --csv (or --events, --poses, --rerun) given a participant's
+    recording or a session file replaced it. Only a table (or a review) vade-replay wrote,
+    or an empty file, is replaced without --force; the file is untouched, exit 2."""
+    import shutil
+    kept = tmp_path / "participant.mcap"
+    shutil.copy(RECORDINGS / "drop_on_table.mcap", kept)
+    session = tmp_path / "s.json"
+    shutil.copy(RECORDINGS / "drop_on_table.json", session)
+    golden = str(RECORDINGS / "throw_and_catch.mcap")
+    for option, path, what in (("--csv", kept, "a recording"), ("--events", kept, "a recording"),
+                               ("--poses", session, "a JSON file (a session?)"),
+                               ("--rerun", session, "a JSON file (a session?)")):
+        _assert_clean_error(run_cli("vade-replay", golden, option, str(path)),
+                            f"{option}: {path} holds {what}", "--force")
+    assert kept.read_bytes() == (RECORDINGS / "drop_on_table.mcap").read_bytes()
+    assert session.read_bytes() == (RECORDINGS / "drop_on_table.json").read_bytes()
+    # Its own outputs, run again: replaced.
+    table, review = tmp_path / "t.csv", tmp_path / "r.rrd"
+    for _ in range(2):
+        assert run_cli("vade-replay", golden, "--csv", str(table), "--rerun",
+                       str(review)).returncode == 0
+    assert run_cli("vade-replay", golden, "--csv", str(kept), "--force").returncode == 0
+    assert kept.read_text().startswith("recording,")
+
+
+def test_a_bad_physics_set_writes_nothing_and_says_so_once(tmp_path):
+    """A researcher's trial: a typo in --set over a study replaced a good study table with
+    a row of errors per recording, and printed its message once a recording."""
+    files = [str(RECORDINGS / f"{n}.mcap") for n in ("drop_on_table", "gear_pendulum")]
+    table = tmp_path / "study.csv"
+    assert run_cli("vade-replay", *files, "--csv", str(table)).returncode == 0
+    good = table.read_bytes()
+    result = run_cli("vade-replay", *files, "--set", "physics.release_velocty=two_frame",
+                     "--csv", str(table))
+    _assert_clean_error(result, "physics.release_velocty: unknown field")
+    assert result.stderr.count("unknown field") == 1
+    assert table.read_bytes() == good
+
+
+def test_a_recording_given_twice_is_replayed_once():
+    golden = RECORDINGS / "drop_on_table.mcap"
+    result = run_cli("vade-replay", str(golden), str(golden.parent / "." / golden.name))
+    assert result.returncode == 0
+    assert "is " + str(golden) + " again: replayed once" in result.stderr
+    assert result.stdout.splitlines() == [
+        "match: 151 frames (2.50 s), 308 derived messages identical to the recording"]
