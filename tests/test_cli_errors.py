@@ -706,32 +706,50 @@ def test_a_recording_or_review_to_standard_output_is_refused_not_a_file_named_da
 
 def test_an_output_holding_another_recording_is_not_replaced_without_force(tmp_path):
     """An engineer's trial: vade-record -o and vade-replay -o replaced a study's recording
-    of another session without a word. The same recording made again replaces it (nothing
-    is lost: a re-run of the demo); another one is refused, exit 2, the file untouched,
-    unless --force."""
+    of another session without a word. A recording of another session, or a file that is
+    no recording, is refused (exit 2, the file untouched) unless --force; one of this
+    session is replaced: silently where it is this recording made again (a re-run of the
+    demo), with a note where the session, its files or the physics differ (editing a
+    session and recording it again; a review: an older version's recording)."""
+    import shutil
     out = tmp_path / "study1.mcap"
     drop, throw = RECORDINGS / "drop_on_table.json", RECORDINGS / "throw_and_catch.json"
     assert run_cli("vade-record", str(drop), "-o", str(out)).returncode == 0
     kept = out.read_bytes()
-    assert run_cli("vade-record", str(drop), "-o", str(out)).returncode == 0  # made again
+    again = run_cli("vade-record", str(drop), "-o", str(out))
+    assert again.returncode == 0 and "note:" not in again.stderr  # made again
     other = run_cli("vade-record", str(throw), "-o", str(out))
     _assert_clean_error(other, str(out), "another session ('drop_on_table')", "--force")
     assert out.read_bytes() == kept and not list(tmp_path.glob("*.partial"))
+    edited = json.loads(drop.read_text())
+    edited["tracker"]["duration_s"] = 2.0
+    session = _write(tmp_path, edited)
+    changed = run_cli("vade-record", str(session), "-o", str(out))
+    assert changed.returncode == 0 and (f"note: replacing {out}, a recording of "
+                                        "'drop_on_table' made otherwise (its session "
+                                        "differed)") in changed.stderr
+    old = tmp_path / "old.mcap"
+    shutil.copy(Path(__file__).parent / "data" / "shaft_slide_off_before_analytic4.mcap", old)
+    (tmp_path / "slide.json").write_bytes(Recording(old).session.raw)
+    older = run_cli("vade-record", str(tmp_path / "slide.json"), "-o", str(old))
+    assert older.returncode == 0 and "(its physics differed)" in older.stderr
     forced = run_cli("vade-record", str(throw), "-o", str(out), "--force")
     assert forced.returncode == 0 and Recording(out).session.name == "throw_and_catch"
-    # A what-if's recording: its changed session is its own; made again, it is replaced.
+    # A what-if's recording embeds its changed session: made again, replaced silently;
+    # another what-if of the same recording, replaced with a note.
     what_if = tmp_path / "what_if.mcap"
     args = ["vade-replay", str(out), "--set", "physics.gravity_scale_free=0.5", "-o",
             str(what_if)]
     first = run_cli(*args)
     assert first.returncode == 0 and f"wrote {what_if} (181 frames regenerated)" in first.stdout
-    assert run_cli(*args).returncode == 0
-    _assert_clean_error(run_cli("vade-replay", str(out), "--set",
-                                "physics.gravity_scale_free=0.3", "-o", str(what_if)),
-                        "another recording of 'throw_and_catch' (its session or files differ)")
-    assert run_cli("vade-replay", str(out), "--set", "physics.gravity_scale_free=0.3", "-o",
-                   str(what_if), "--force").returncode == 0
-
+    assert "note:" not in run_cli(*args).stderr
+    other_what_if = run_cli("vade-replay", str(out), "--set", "physics.gravity_scale_free=0.3",
+                            "-o", str(what_if))
+    assert other_what_if.returncode == 0 and "(its session and its physics differed)" \
+        in other_what_if.stderr
+    (tmp_path / "notes.txt").write_text("not a recording")
+    _assert_clean_error(run_cli("vade-replay", str(out), "-o", str(tmp_path / "notes.txt")),
+                        "not a readable recording", "--force")
 
 def test_a_set_given_twice_with_two_values_is_refused():
     """An engineer's trial: the last of two --set values of one key won without a word."""

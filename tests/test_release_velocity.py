@@ -152,3 +152,29 @@ def test_samples_microseconds_apart_do_not_make_huge_velocities():
     history.append((t + 1000, (p[0] + 5e-4, p[1], p[2]), q))  # 1 us later, 0.5 mm of noise
     v, _ = velocity.estimate(tuple(history), method="window_fit", window=WINDOW)
     assert np.linalg.norm(np.array(v) - V_TRUE) < 0.1
+
+
+def test_a_throw_from_a_backswing_is_not_taken_for_a_stop():
+    """A review: a throw whose window starts in the backswing (the hand's way over the
+    window points back, the throw forward) was cut to the lagging line of its last three
+    samples (2 m/s read as 1.0, a 10 rad/s flick as 3.3). Its last step moves, so the fit
+    stands: exact, as window_fit's, for motion quadratic in time."""
+    def flick(v0, a, w0=(0.0, 0.0, 0.0), alpha=(0.0, 0.0, 0.0), n=10):
+        out, t_end = [], 10**9 + (n - 1) * 10**9 // RATE
+        for k in range(n):
+            t_ns = 10**9 + k * 10**9 // RATE
+            t = (t_ns - t_end) * 1e-9
+            p = np.array([0.1, 0.2, 1.2]) + np.array(v0) * t + 0.5 * np.array(a) * t * t
+            angle = np.array(w0) * t + 0.5 * np.array(alpha) * t * t
+            out.append((t_ns, tuple(float(x) for x in p),
+                        sp.quat_normalize(sp.quat_from_rotvec(tuple(angle)))))
+        return tuple(out)
+    for accel in (30.0, 45.0, 60.0, 90.0):
+        history = flick((2.0, 0.0, 0.0), (accel, 0.0, 0.0))
+        v, _ = velocity.estimate(history, method="window_fit_stops", window=WINDOW)
+        assert v == velocity.estimate(history, method="window_fit", window=WINDOW)[0]
+        assert abs(v[0] - 2.0) < 1e-9
+    for alpha in (150.0, 250.0, 400.0):
+        history = flick((0.0, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 10.0, 0.0), (0.0, alpha, 0.0))
+        _, w = velocity.estimate(history, method="window_fit_stops", window=WINDOW)
+        assert abs(w[1] - 10.0) < 1e-6

@@ -215,3 +215,63 @@ def test_a_pin_with_less_clearance_than_the_tolerance_slides_down_its_bore(radiu
         raise AssertionError("never placed")
     blocked = run_records(_pin_in_bore(radius_mm, passing="block"))
     assert "reached_final_pose" not in [e.cause for r in blocked for e in r.events]
+
+
+def _deep_bore(radius_mm: float, depth_mm: float, lug: bool = False) -> dict:
+    """``_pin_in_bore`` with a bore ``depth_mm`` deep and a pin 20 mm longer, let go with
+    its end at the mouth; its final pose on the plate, to 0.5 mm. With ``lug``, a block on
+    the pin's side above the boss (its centre of mass off the axis)."""
+    doc = _pin_in_bore(radius_mm)
+    doc["base"]["shape"]["children"][1].update(height=depth_mm,
+                                              pose={"position": [30, 0, 5 + depth_mm / 2]})
+    length = depth_mm + 20
+    pin = doc["parts"][0]
+    pin["shape"]["height"] = length
+    if lug:
+        pin["shape"] = {"type": "compound", "children": [
+            pin["shape"], {"type": "box", "size": [12, 4, 4],
+                           "pose": {"position": [9, 0, length / 2 - 2]}}]}
+    pin["assembly"]["final_pose"] = {"position": [30, 0, 5 + length / 2]}
+    pin["assembly"]["final_tolerance"] = {"distance": 0.5, "angle_deg": 180}
+    doc["tracker"]["devices"]["right_hand"][2]["position"] = [31, 200,
+                                                             955 + depth_mm + length / 2]
+    return doc
+
+
+@pytest.mark.parametrize("depth_mm", [20, 36, 50])
+def test_a_pin_passing_its_rim_stops_on_the_plate_not_short_of_it(depth_mm):
+    """A review: passing its bore's rim 0.05 mm clear, a pin was blocked where it first met
+    the rim once the plate came within twenty tolerances of its travel, up to 2 mm short
+    of the plate (a bore 36 mm deep), and never placed. It is stopped where the plate is
+    half the tolerance away, and placed (0.5 mm final tolerance)."""
+    from conftest import run_records
+    records = run_records(_deep_bore(4.95, depth_mm))
+    assert records[-1].parts[0].mode == "PLACED"
+    bottom = records[-1].parts[0].position[2] - (depth_mm + 20) / 2000 - 0.955
+    assert abs(bottom) < 1e-9  # placed: put at its final pose, on the plate
+
+
+def test_a_pin_that_passed_its_rim_still_turns_on_the_plate():
+    """A review: having passed its rim and stopped a hundredth of a millimetre off the
+    plate, a pin with a lug could never turn again (every move started nearer than a tenth
+    of the tolerance and was blocked). Stopped half the tolerance off, it swings about the
+    bore when the base tilts, as a pin with room to spare (4.85 mm) does; held at the rim
+    (``passing_contact: block``) it does not."""
+    from conftest import run_records
+
+    def turned(radius: float, passing: str | None) -> float:
+        doc = _deep_bore(radius, 20, lug=True)
+        doc["parts"][0]["assembly"]["final_pose"] = {"position": [30, 0, 5000]}  # never
+        doc["tracker"]["duration_s"] = 2.5
+        doc["tracker"]["devices"]["left_hand"] += [{"t": 1.4, "euler_deg": [0, 0, 0]},
+                                                    {"t": 1.8, "euler_deg": [30, 0, 0]}]
+        if passing:
+            doc["physics"]["passing_contact"] = passing
+        records = run_records(doc)
+
+        def relative(r):
+            return sp.quat_mul(sp.quat_conj(r.base.rotation_xyzw), r.parts[0].rotation_xyzw)
+        return sp.quat_angle_between(relative(records[100]), relative(records[-1]))
+    assert turned(4.85, None) > 0.1
+    assert turned(4.95, None) > 0.1
+    assert turned(4.95, "block") < 1e-9

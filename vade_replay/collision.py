@@ -108,12 +108,14 @@ _FACE_COS = math.cos(math.radians(30.0))
 
 
 def base_surfaces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """A label per face: faces sharing an edge at a fold under ``_FOLD_DEG`` (both ways
-    round: the normals' angle) carry the same label, the least face index of their
-    surface. Smooth or flat stretches of a mesh, however finely it is cut, are one
-    surface; a box's six faces are six."""
+    """A label per face, the least face index of its surface: faces reached from that face
+    across edges folded under ``_FOLD_DEG`` whose normals stay within ``_FOLD_DEG`` of its
+    own. A flat stretch of a mesh, however finely cut, is one surface; a box's six faces
+    are six; a cylinder's side is a few, each turning at most that much (a review: folds
+    alone joined a wall, a finely cut fillet and the plate below into one surface, which a
+    part leaving the wall then passed through)."""
     n = len(faces)
-    labels = np.arange(n)
+    labels = np.full(n, -1, dtype=np.int64)
     if n == 0:
         return labels
     tri = vertices[faces]
@@ -127,16 +129,31 @@ def base_surfaces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     edges, owner = edges[order], owner[order]
     same = np.all(edges[1:] == edges[:-1], axis=1)
     a, b = owner[:-1][same], owner[1:][same]
-    smooth = np.einsum("ij,ij->i", normals[a], normals[b]) >= math.cos(math.radians(_FOLD_DEG))
-    a, b = a[smooth], b[smooth]
-    while True:  # the least label along each smooth edge, until none changes
-        low = np.minimum(labels[a], labels[b])
-        before = labels.copy()
-        np.minimum.at(labels, a, low)
-        np.minimum.at(labels, b, low)
-        labels = labels[labels]
-        if np.array_equal(labels, before):
-            return labels
+    limit = math.cos(math.radians(_FOLD_DEG))
+    smooth = np.einsum("ij,ij->i", normals[a], normals[b]) >= limit
+    a, b = np.concatenate([a[smooth], b[smooth]]), np.concatenate([b[smooth], a[smooth]])
+    by = np.lexsort((b, a))
+    a, b = a[by], b[by]
+    starts = np.searchsorted(a, np.arange(n + 1))
+    neighbours, unit = b.tolist(), normals.tolist()
+    bounds = starts.tolist()
+    out = labels.tolist()
+    for seed in range(n):
+        if out[seed] >= 0:
+            continue
+        out[seed] = seed
+        sx, sy, sz = unit[seed]
+        stack = [seed]
+        while stack:
+            face = stack.pop()
+            for k in range(bounds[face], bounds[face + 1]):
+                other = neighbours[k]
+                if out[other] < 0:
+                    ox, oy, oz = unit[other]
+                    if sx * ox + sy * oy + sz * oz >= limit:
+                        out[other] = seed
+                        stack.append(other)
+    return np.array(out, dtype=np.int64)
 
 
 # A witness pair decides "within the tolerance" only this far inside it: far above the
@@ -194,6 +211,8 @@ class CollisionWorld:
         # The base's surfaces (``base_surfaces``), made when a part first leaves the base:
         # a flight passes those it touched as it left until the two have separated once.
         self._base_surfaces: list[_Surface] | None = None
+        # Per (part, constraint, surface): the surface's faces its SKIP checks keep.
+        self._rest_surfaces: dict[tuple[str, int, int], fcl.CollisionObject | None] = {}
         self._probe = fcl.Sphere(1e-9)
         # Per (part, mate, mode): the pair of triangles that last came within the tolerance
         # (``base_distance_within``), as one-triangle BVHs.
@@ -331,11 +350,46 @@ class CollisionWorld:
                     (float(hi[0]), float(hi[1]), float(hi[2]))))
         return self._base_surfaces
 
-    def _surface_object(self, surface: _Surface) -> fcl.CollisionObject:
-        if surface.obj is None:
-            surface.obj = fcl.CollisionObject(
-                _bvh_of(self._base_vertices, self._base_faces[surface.faces]), fcl.Transform())
-        return surface.obj
+    def _surface_object(self, index: int,
+                        mate: tuple[str, int] | None = None) -> fcl.CollisionObject | None:
+        """A surface's BVH; with ``mate`` (part, constraint), of its faces that constraint's
+        SKIP checks keep (``_MateGeometry.base_rest_faces``; None where none is)."""
+        surface = self._surfaces()[index]
+        if mate is None:
+            if surface.obj is None:
+                surface.obj = fcl.CollisionObject(
+                    _bvh_of(self._base_vertices, self._base_faces[surface.faces]),
+                    fcl.Transform())
+            return surface.obj
+        key = (mate[0], mate[1], index)
+        if key not in self._rest_surfaces:
+            faces = np.intersect1d(surface.faces, self._mates[mate].base_rest_faces)
+            model = _bvh_of(self._base_vertices, self._base_faces[faces])
+            self._rest_surfaces[key] = None if model is None \
+                else fcl.CollisionObject(model, fcl.Transform())
+        return self._rest_surfaces[key]
+
+    def rest_surfaces_within(self, part: str, mate: int, base_from_part: sp.Pose,
+                             within: float, *, lift: sp.Vec3 = sp.ZERO3) -> tuple[int, ...]:
+        """The surfaces (``base_surfaces``) of what a constraint's SKIP checks keep of the
+        base within ``within`` of the posed part: what a part passing the base within the
+        tolerance comes near (``step._passing``)."""
+        pose = sp.Pose(sp.add(base_from_part.position, lift), base_from_part.rotation)
+        obj = fcl.CollisionObject(self._model(part), _transform(pose))
+        near = []
+        for _, index in self._nearest_surfaces(part, pose, (), within):
+            other = self._surface_object(index, (part, mate))
+            if other is not None:
+                self.stats["fcl_distance_queries"] += 1
+                if _distance(obj, other) <= within:
+                    near.append(index)
+        return tuple(sorted(near))
+
+    def rest_distance(self, part: str, mate: int, base_from_part: sp.Pose,
+                      only: tuple[int, ...], *, lift: sp.Vec3 = sp.ZERO3) -> float:
+        """``base_distance`` under a SKIP mode to the surfaces ``only`` lists alone."""
+        pose = sp.Pose(sp.add(base_from_part.position, lift), base_from_part.rotation)
+        return self._graced_nearest(part, pose, (), False, (part, mate), only)[0]
 
     def _part_box(self, part: str, base_from_part: sp.Pose) -> tuple[sp.Vec3, sp.Vec3]:
         body = self._bodies[part]
@@ -348,13 +402,17 @@ class CollisionWorld:
                  max(c[2] for c in corners)))
 
     def _nearest_surfaces(self, part: str, base_from_part: sp.Pose,
-                          grace: tuple[int, ...], within: float = float("inf")):
-        """The surfaces not in ``grace`` nearest the posed part, nearest box first, with
-        each one's box gap (a lower bound of its distance), those within ``within``."""
+                          grace: tuple[int, ...], within: float = float("inf"),
+                          only: tuple[int, ...] | None = None):
+        """The surfaces not in ``grace`` (of those ``only`` lists) nearest the posed part,
+        nearest box first, with each one's box gap (a lower bound of its distance), those
+        within ``within``."""
         self.stats["bounding_tests"] += 1
         lo, hi = self._part_box(part, base_from_part)
         out = []
-        for index, surface in enumerate(self._surfaces()):
+        surfaces = self._surfaces()
+        for index in (range(len(surfaces)) if only is None else only):
+            surface = surfaces[index]
             if index in grace:
                 continue
             gap = math.sqrt(sum(max(0.0, surface.lo[k] - hi[k], lo[k] - surface.hi[k]) ** 2
@@ -377,22 +435,27 @@ class CollisionWorld:
         near = []
         for _, index in self._nearest_surfaces(part, base_from_part, (), within):
             self.stats["fcl_distance_queries"] += 1
-            if _distance(obj, self._surface_object(self._surfaces()[index])) <= within:
+            if _distance(obj, self._surface_object(index)) <= within:  # type: ignore[arg-type]
                 near.append(index)
         return tuple(sorted(near))
 
     def _graced_nearest(self, part: str, base_from_part: sp.Pose, grace: tuple[int, ...],
-                        nearest_points: bool):
-        """The distance to the base without the surfaces ``grace`` lists, and the fcl result
-        and surface of it (``inf``, None, -1 where none is left)."""
+                        nearest_points: bool, mate: tuple[str, int] | None = None,
+                        only: tuple[int, ...] | None = None):
+        """The distance to the base (with ``mate``, what that constraint's SKIP checks keep
+        of it) without the surfaces ``grace`` lists (or to those ``only`` lists), and the
+        fcl result and surface of it (``inf``, None, -1 where none is left)."""
         obj = fcl.CollisionObject(self._model(part), _transform(base_from_part))
         best, found, which = float("inf"), None, -1
-        for gap, index in self._nearest_surfaces(part, base_from_part, grace):
+        for gap, index in self._nearest_surfaces(part, base_from_part, grace, only=only):
             if gap >= best:
                 break  # boxes sorted by gap: nothing farther can be nearer
+            other = self._surface_object(index, mate)
+            if other is None:
+                continue
             self.stats["fcl_distance_queries"] += 1
             result = fcl.DistanceResult()
-            d = fcl.distance(obj, self._surface_object(self._surfaces()[index]),
+            d = fcl.distance(obj, other,
                              fcl.DistanceRequest(enable_nearest_points=nearest_points), result)
             if d < best:
                 best, found, which = d, result, index

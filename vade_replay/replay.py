@@ -14,6 +14,7 @@ import copy
 import json
 import math
 import re
+import sys
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Iterable, Iterator
@@ -586,26 +587,37 @@ class TrackerWatch:
         return out
 
 
-def refuse_replacing(out: str | Path, session: Session) -> None:
-    """``vade-record``'s and ``vade-replay -o``'s guard (``--force`` skips it): a file at
-    ``out`` is replaced only by the same recording made again (the same session and files,
-    a what-if's changes included), which loses nothing; another recording there, or a file
-    that is not one, is refused (an engineer's trial found a study's recording replaced by
-    another session's without a word)."""
+def refuse_replacing(out: str | Path, session: Session, scene: Scene) -> str | None:
+    """``vade-record``'s and ``vade-replay -o``'s guard (``--force`` skips it), before a
+    run writes ``out``: a file there that is a recording of another session, or no
+    recording, is refused (an engineer's trial found a study's recording replaced by
+    another session's without a word). A recording of this session is replaced: silently
+    where it is this recording made again (the same session, files and physics), else
+    with the note returned, for the command to print (the loop of editing a session and
+    recording it again is not refused; a review found an older version's recording
+    replaced without a word)."""
     path = Path(out)
     if not path.exists() or in_place(path):
-        return
+        return None
     try:
         existing = Recording(path)
-        same = existing.session.doc == session.doc and existing.session.files == session.files
-        what = f"a recording of another session ({existing.session.name!r})" \
-            if existing.session.name != session.name else \
-            f"another recording of {session.name!r} (its session or files differ)"
+        theirs = existing.session
+        physics = existing.metadata.get("physics")
     except (VadeError, OSError, ValueError):
-        same, what = False, "a file that is not a readable recording"
-    if not same:
-        raise ConfigError(f"it already holds {what}; pass --force to replace it, or choose "
-                          "another output", file=str(out))
+        raise ConfigError("it holds a file that is not a readable recording; pass --force "
+                          "to replace it, or choose another output", file=str(out)) from None
+    if theirs.name != session.name:
+        raise ConfigError(f"it holds a recording of another session ({theirs.name!r}); pass "
+                          "--force to replace it, or choose another output", file=str(out))
+    differs = [what for what, same in (
+        ("its session", theirs.doc == session.doc),
+        ("its files", theirs.files == session.files),
+        ("its physics", physics is None
+         or physics == physics_metadata(scene.physics))) if not same]
+    if not differs:
+        return None
+    return (f"replacing {out}, a recording of {session.name!r} made otherwise "
+            f"({' and '.join(differs)} differed)")
 
 
 def record(session: Session, out: str | Path, *,
@@ -618,10 +630,12 @@ def record(session: Session, out: str | Path, *,
     raised with the frame it happened at. With ``replace_other`` False, a file at ``out``
     other than this recording made again is refused first (``refuse_replacing``).
     """
-    if not replace_other:
-        refuse_replacing(out, session)
-    partial, target = partial_output(out)
     scene = session.build_scene()
+    if not replace_other:
+        note = refuse_replacing(out, session, scene)
+        if note:
+            print(f"note: {note}", file=sys.stderr)
+    partial, target = partial_output(out)
     collision = CollisionWorld(scene)
     summary = RunSummary(session.name, parts=[p.name for p in scene.parts],
                          warnings=session.warnings() + scene_warnings(scene, collision,
@@ -1309,7 +1323,9 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
             raise ConfigError("refusing to write over the recording being replayed (it is "
                               "this output's .partial file)", file=str(out))
         if not replace_other:
-            refuse_replacing(out, session)
+            note = refuse_replacing(out, session, scene)
+            if note:
+                print(f"note: {note}", file=sys.stderr)
         partial, target = partial_output(out)
         # A what-if's recording embeds the changed session, so that it replays itself.
         writer = RecordingWriter(partial, session, scene,

@@ -1222,7 +1222,9 @@ def _sweep_past(f: _Frame, lam0: float, at, speed: float, distance) -> float | N
     """Conservative advancement along the frame's path from ``lam0`` to within
     ``_PASS_DEPTH`` of the tolerance of the base: where, or None if nowhere. Steps are
     short where it passes within the tolerance of something (~0.05 mm of travel at a 0.05
-    mm clearance), but none can pass through anything."""
+    mm clearance), but none can pass through anything; out of steps, it stops where it got
+    to (a review: a 360 mm pin in a bore 0.012 mm clear ran out and jumped to the frame's
+    end, inside the plate)."""
     deep = _PASS_DEPTH * f.scene.physics.contact_tolerance
     lam = lam0
     d = distance(*at(lam))
@@ -1234,24 +1236,66 @@ def _sweep_past(f: _Frame, lam0: float, at, speed: float, distance) -> float | N
             return 1.0 if distance(*at(1.0)) <= deep else None
         lam += step_len
         d = distance(*at(lam))
-    return lam if d <= deep else None
+    return lam
 
 
-def _passing(f: _Frame, lam: float, at, speed: float, distance) -> tuple[bool, float | None]:
+def _passing(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, lam: float, at,
+             speed: float, distance, lift: sp.Vec3) -> tuple[bool, float | None]:
     """At a point ``lam`` of the frame's path within the contact tolerance of the base:
     whether the part passes what it touches rather than moving into it, and where it is
-    blocked if it does. Into: it comes within ``_PASS_DEPTH`` of the tolerance of the base
-    within ``_PASS_REACH`` tolerances of travel (blocked at ``lam``, as any contact).
-    Passing: it does not (a pin passing its bore's rim with less radial clearance than the
-    tolerance stays at that clearance); it is then blocked where it first comes that near
-    anything (``_sweep_past``), or nowhere in this frame."""
+    blocked if it does.
+
+    Into: closing in on the base from ``lam`` (over the first half tolerance of travel, by
+    over a hundredth of it) and within ``_PASS_DEPTH`` of the tolerance of it within
+    ``_PASS_REACH`` tolerances: blocked at ``lam``, as any contact. Otherwise it passes (a
+    pin passing its bore's rim with less radial clearance than the tolerance stays at that
+    clearance), and is blocked, if it comes that near anything in the frame, where what it
+    came near is still half the tolerance away (``_back_off``): not at the rim, short of
+    the plate (a review: blocked at the rim's contact, up to 2 mm short), nor touching it
+    so that it could never turn again."""
     tol = f.scene.physics.contact_tolerance
-    if distance(*at(lam)) <= _PASS_DEPTH * tol:
+    d0 = distance(*at(lam))
+    if d0 <= _PASS_DEPTH * tol:
         return False, lam  # already that near: along and into cannot be told apart
     deep_at = _sweep_past(f, lam, at, speed, distance)
-    if deep_at is not None and (deep_at - lam) * speed <= _PASS_REACH * tol:
-        return False, lam
-    return True, deep_at
+    if deep_at is None:
+        return True, None
+    if (deep_at - lam) * speed <= _PASS_REACH * tol:
+        probe = lam + 0.5 * tol / speed
+        if probe >= deep_at or distance(*at(probe)) < d0 - 0.005 * tol:
+            return False, lam
+    return True, _back_off(f, body, mate, m, lam, deep_at, at, lift)
+
+
+def _back_off(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, lam: float, deep_at: float,
+              at, lift: sp.Vec3) -> float:
+    """Where, between ``lam`` and ``deep_at`` (a tenth of the tolerance from the base), a
+    part passing what it touched stops: the last point half the tolerance from the base's
+    surfaces it came near at ``deep_at`` (bisected; ``lam`` if it starts nearer)."""
+    tol = f.scene.physics.contact_tolerance
+
+    def rel(lam_: float) -> sp.Pose:
+        x, a = at(lam_)
+        return cn.relative_pose(mate, m.base_from_snap, x, a)
+    near = f.collision.rest_surfaces_within(body.name, m.mate, rel(deep_at),
+                                            _PASS_DEPTH * tol, lift=lift)
+    if not near:
+        return deep_at
+
+    def gap(lam_: float) -> float:
+        return f.collision.rest_distance(body.name, m.mate, rel(lam_), near, lift=lift)
+    lo, hi = lam, deep_at
+    if gap(lo) < 0.5 * tol:
+        return lo
+    for _ in range(50):
+        mid = 0.5 * (lo + hi)
+        if mid <= lo or mid >= hi:
+            break
+        if gap(mid) >= 0.5 * tol:
+            lo = mid
+        else:
+            hi = mid
+    return lo
 
 
 def _sweep(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, x1: tuple[float, ...], a1: float):
@@ -1313,7 +1357,7 @@ def _sweep(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, x1: tuple[float, ...
             hit = 0.0 if d_end < 0.5 * tol - _CONTACT_SLACK_M else None
             d = d_end
             if hit is not None and passing:
-                passed, past = _passing(f, 0.0, at, speed, distance)
+                passed, past = _passing(f, body, mate, m, 0.0, at, speed, distance, lift)
                 if passed:
                     hit, depth = past, _PASS_DEPTH * tol
                     d = distance(*at(1.0 if hit is None else hit))
@@ -1336,7 +1380,7 @@ def _sweep(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, x1: tuple[float, ...
             hit = 1.0 if d <= tol else None
         if hit is not None and passing:
             # Come within the tolerance of something it passes (a bore's rim), not into it?
-            passed, past = _passing(f, hit, at, speed, distance)
+            passed, past = _passing(f, body, mate, m, hit, at, speed, distance, lift)
             if passed:
                 hit, depth = past, _PASS_DEPTH * tol
                 d = distance(*at(1.0 if hit is None else hit))

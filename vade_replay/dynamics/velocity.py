@@ -4,10 +4,12 @@
 of the last interval, with the tracker noise amplified by ``sqrt(2) / dt``.
 
 ``window_fit_stops`` (the default since 2026-11-23) is ``window_fit``, except where its
-slope points back against the way the hand went over the window: there the slope of the
-line through the last three samples. A hand carried at 1 m/s that stops three frames
-before opening was read as throwing the part back at 0.36 m/s (an engineer's trial), the
-quadratic through the motion and the stop overshooting it.
+slope points back against the way the hand went over the window and the last step nearly
+stood still: there the slope of the line through the last three samples. A hand carried at 1 m/s that
+stops three frames before opening was read as throwing the part back at 0.36 m/s (an
+engineer's trial), the quadratic through the motion and the stop overshooting it; a throw
+from a backswing (its slope against the window's way too) moves in its last step and is
+kept.
 
 ``window_fit`` fits a quadratic in time, by least squares, to the last ``window`` positions
 and rotation vectors (taken relative to the newest orientation), and returns its slope at
@@ -146,11 +148,23 @@ def estimate(history: tuple, *, method: str, window: int) -> tuple[sp.Vec3, sp.V
         # over the window. Then the line through the last three samples is the velocity
         # (zero for a hand that has rested two steps; its noise is the quadratic's, ~0.7
         # std / dt a coordinate, so a hand at rest, whose way is noise, loses nothing).
-        if sp.dot(v, sp.sub(positions[-1], positions[0])) < 0.0:
-            v = _line_slope(times[-3:], positions[-3:])
-        if sp.dot(w, sp.sub(rotvecs[-1], rotvecs[0])) < 0.0:
-            w = _line_slope(times[-3:], rotvecs[-3:])
+        v = _unless_overshot(v, positions, times)
+        w = _unless_overshot(w, rotvecs, times)
     return v, w
+
+
+def _unless_overshot(fit: sp.Vec3, values: list[sp.Vec3], times: list[float]) -> sp.Vec3:
+    """The fit's slope, or the line's through the last three samples where the fit points
+    back against the window's way and the last step nearly stood still (under a quarter of
+    the fit's speed): a stop. A throw from a backswing points back against the window's way
+    too, but its last step moves (a review: 2 m/s after 60 m/s^2, a 10 rad/s flick after
+    400 rad/s^2 were cut to their lagging line)."""
+    if sp.dot(fit, sp.sub(values[-1], values[0])) >= 0.0:
+        return fit
+    step = sp.scale(sp.sub(values[-1], values[-2]), 1.0 / (times[-1] - times[-2]))
+    if sp.dot(step, step) >= 0.0625 * sp.dot(fit, fit):
+        return fit
+    return _line_slope(times[-3:], values[-3:])
 
 
 def _line_slope(times: list[float], values: list[sp.Vec3]) -> sp.Vec3:
