@@ -106,7 +106,9 @@ def test_a_studys_recordings_as_one_table(tmp_path):
         # The run's mass of the part: its mesh's volume times its density, as the scene has it.
         golden = Recording(row["recording"])
         body = next(b for b in golden.session.build_scene().parts if b.name == row["part"])
-        assert float(row["mass_kg"]) == body.mass_kg == summary["masses_kg"][row["part"]] > 0
+        assert float(row["mass_kg"]) == pytest.approx(body.mass_kg, rel=1e-11)
+        assert body.mass_kg > 0
+        assert body.mass_kg == summary["masses_kg"][row["part"]]
     hoist = next(row for row in rows if row["session"] == "hoist_placed")
     assert (hoist["placed_at_s"], hoist["s_ONTOOL"], hoist["refused_grabs"],
             hoist["session_refused_grabs"], hoist["error"]) == ("3.4", "2.4", "1", "1", "")
@@ -419,3 +421,26 @@ def test_a_what_if_names_its_first_change_in_events():
     plain = json.loads(run_cli("vade-replay", str(RECORDINGS / "throw_and_catch.mcap"),
                                "--json").stdout)
     assert plain["first_event_change"] is None
+
+
+def test_the_study_table_says_which_rows_are_as_recorded_and_where_a_what_if_changed():
+    """A researcher's trial: --as-recorded rows could not be told from rows replayed with
+    this version's defaults, and a what-if's first change in events was only in --json;
+    its overrides were doubly quoted (physics.release_velocity=""two_frame"")."""
+    import csv
+    import io
+    old = Path(__file__).resolve().parent / "data" / "shaft_slide_off_before_analytic4.mcap"
+    result = run_cli("vade-replay", str(old), "--as-recorded", "--csv", "-")
+    rows = list(csv.DictReader(io.StringIO(result.stdout)))
+    assert rows and all(r["as_recorded"].startswith("block_cut=both; block_event=always")
+                        and "release_velocity=window_fit" in r["as_recorded"] for r in rows)
+    plain = list(csv.DictReader(io.StringIO(run_cli(
+        "vade-replay", str(RECORDINGS / "throw_and_catch.mcap"), "--csv", "-").stdout)))
+    assert plain[0]["as_recorded"] == "" and plain[0]["first_event_change_frame"] == ""
+    what_if = list(csv.DictReader(io.StringIO(run_cli(
+        "vade-replay", str(RECORDINGS / "throw_and_catch.mcap"), "--set",
+        "physics.gravity_scale_free=0.5", "--set", "physics.release_velocity=two_frame",
+        "--csv", "-").stdout)))
+    assert what_if[0]["first_event_change_frame"] != ""
+    assert what_if[0]["overrides"] == ("physics.gravity_scale_free=0.5; "
+                                       "physics.release_velocity=two_frame")

@@ -208,3 +208,29 @@ def test_a_block_sliding_off_a_finely_meshed_plate_falls_as_off_a_coarse_one():
     assert _transitions(fine) == _transitions(coarse)
     assert _transitions(fine)[-1] == ("INSPACE", "STATIC", "hit_environment")
     assert math.dist(fine[-1].parts[0].position, coarse[-1].parts[0].position) < 1e-4
+
+
+def test_a_part_thrown_past_the_table_is_said_to_fall_for_ever(tmp_path):
+    """A researcher's trial: a part thrown past the table falls for ever (there is no
+    floor), flying to the end, and the study heard only "never placed". vade-record warns
+    of it, with how far past everything it is, and a replay repeats it."""
+    from conftest import run_cli
+    doc = json.loads((RECORDINGS / "throw_and_catch.json").read_text())
+    doc["tracker"]["devices"]["right_hand"] = [
+        {"t": 0.0, "position": [0.15, -0.25, 1.0], "grip": False},
+        {"t": 0.3, "position": [0.0, 0.0, 0.78]}, {"t": 0.4, "grip": True},
+        {"t": 0.8, "position": [0.1, 0.0, 0.85]},
+        {"t": 1.0, "position": [-0.5, 0.0, 1.15], "grip": False},
+        {"t": 1.3, "position": [0.1, 0.0, 1.3]}]
+    (tmp_path / "s.json").write_text(json.dumps(doc))
+    result = run_cli("vade-record", str(tmp_path / "s.json"), "-o", str(tmp_path / "r.mcap"))
+    assert result.returncode == 0, result.stderr
+    (warning,) = [w for w in result.stderr.splitlines() if "still falling" in w]
+    assert warning.startswith(f"warning: {tmp_path / 's.json'}: cylinder is still falling at "
+                              "the end (t = 3.000 s), ")
+    assert warning.endswith("m past everything in the scene: there is no floor")
+    assert "when recorded: cylinder is still falling" in run_cli(
+        "vade-replay", str(tmp_path / "r.mcap")).stderr
+    # The shipped throw is caught: nothing said.
+    assert "still falling" not in run_cli("vade-record", str(RECORDINGS / "throw_and_catch.json"),
+                                          "-o", str(tmp_path / "t.mcap")).stderr

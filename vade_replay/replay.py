@@ -143,7 +143,8 @@ PART_COUNTS = ("grabs", "catches", "releases", "drops", "slid_off", "lifted_off"
 ANALYSIS_COLUMNS = ("recording", "session", "match", "first_divergence_frame", "frames",
                     "duration_s", "part", *PART_COUNTS, "placed_at_s",
                     *(f"s_{mode.value}" for mode in Mode), "session_refused_grabs", "error",
-                    "overrides", "truncated", "release_misses", "units", "mass_kg")
+                    "overrides", "truncated", "release_misses", "units", "mass_kg",
+                    "as_recorded", "first_event_change_frame")
 
 
 # The run frame by frame as tables (``vade-replay --events``, ``--poses``), for a study's own
@@ -201,8 +202,16 @@ def analysis_rows(recording: str, summary: dict) -> list[dict]:
                "frames": summary["frames"], "duration_s": summary["duration_s"],
                "session_refused_grabs": sum(analysis["refused_grabs"].values()), "error": "",
                # A what-if's changes (empty for a plain replay), so its rows stand apart.
-               "overrides": "; ".join(f"{key}={json.dumps(value)}" for key, value
+               "overrides": "; ".join(f"{key}={_as_text(value)}" for key, value
                                       in sorted((summary.get("overrides") or {}).items())),
+               # Replayed with the physics defaults it was made with (--as-recorded): those
+               # restored (``none changed`` where none had), so its rows stand apart too.
+               "as_recorded": "" if summary.get("as_recorded") is None else (
+                   "; ".join(f"{key}={_as_text(value)}" for key, value
+                             in sorted(summary["as_recorded"].items())) or "none changed"),
+               # A what-if's first frame whose events differ from the recording's.
+               "first_event_change_frame": (summary.get("first_event_change") or {}).get(
+                   "frame", ""),
                # Cut short (a crash while recording): the frames it held, not the session.
                "truncated": bool(summary.get("truncated")),
                # The session's length unit, which a what-if's lengths are in (a study may
@@ -218,9 +227,16 @@ def analysis_rows(recording: str, summary: dict) -> list[dict]:
         # Its releases that went onto no constraint (the distances are in --json).
         row["release_misses"] = sum(miss["part"] == name
                                     for miss in summary.get("release_misses") or ())
-        row["mass_kg"] = (summary.get("masses_kg") or {}).get(name, "")
+        mass = (summary.get("masses_kg") or {}).get(name, "")
+        # (To 12 digits: a mesh's mass properties carry round-off, 0.34559999999999996.)
+        row["mass_kg"] = float(f"{mass:.12g}") if isinstance(mass, float) else mass
         rows.append({column: row[column] for column in ANALYSIS_COLUMNS})
     return rows
+
+
+def _as_text(value) -> str:
+    """A value in a table cell: text as itself (``two_frame``), anything else as JSON."""
+    return value if isinstance(value, str) else json.dumps(value)
 
 
 def _first_difference(a, b, path: str = ""):
@@ -673,9 +689,40 @@ def record(session: Session, out: str | Path, *,
         raise
     if first_time is not None:
         summary.warnings += watch.warnings(first_time)  # (kept in the file: the same list)
+        summary.warnings += fallen_past_everything(scene, record_, first_time)
     writer.close(complete_as=target)
     summary.counters = dict(collision.stats)
     return summary
+
+
+def fallen_past_everything(scene: Scene, last: FrameRecord, first_time_ns: int) -> list[str]:
+    """Parts still flying at the end, below everything of the scene (along gravity): there
+    is no floor, so they fall for ever, and a study's table says only "never placed" (a
+    researcher's trial: a sleeve thrown past the table ended 0.55 m under the floor's
+    level, flying)."""
+    g = scene.physics.gravity_free
+    norm = math.sqrt(sp.dot(g, g))
+    if norm == 0.0 or not scene.environment:
+        return []
+    down = sp.scale(g, 1.0 / norm)
+    lowest = max(sp.dot(_world_corner, down) for body in scene.environment
+                 for _world_corner in _corners(body, body.initial_pose))
+    out = []
+    t = (last.time_ns - first_time_ns) / 1e9
+    for snap in last.parts:
+        if snap.mode != Mode.INSPACE.value:
+            continue
+        below = sp.dot(snap.position, down) - lowest
+        if below > 0.0:
+            out.append(f"{snap.name} is still falling at the end (t = {t:.3f} s), "
+                       f"{below:.3g} m past everything in the scene: there is no floor")
+    return out
+
+
+def _corners(body, pose) -> list[sp.Vec3]:
+    lo, hi = body.bbox_min, body.bbox_max
+    return [pose.apply((x, y, z)) for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+            for z in (lo[2], hi[2])]
 
 
 def _watched(frames: Iterable[TrackerFrame], watch: TrackerWatch) -> Iterator[TrackerFrame]:
@@ -1416,6 +1463,11 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
             writer.close(complete_as=target, stopped=stopped)
     if summary.frames == 0:
         raise VadeError("recording holds no frames", file=str(recording.path))
+    if applied and previous is not None and first_time is not None:
+        # A what-if's own: a part that now falls past everything (the recording's are
+        # repeated as recorded).
+        summary.warnings += [w for w in fallen_past_everything(scene, previous, first_time)
+                             if w not in recording.warnings]
     summary.match = summary.first_divergence is None
     summary.counters = dict(collision.stats)
     summary.truncated = recording.truncated
