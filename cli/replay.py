@@ -167,9 +167,11 @@ def _check_physics_overrides(recordings: list[str], overrides: dict[str, str]) -
     for path in recordings:
         try:
             session = Recording(path).session
+            apply_overrides(session, physics)
+        except ConfigError:
+            raise  # the --set itself
         except (VadeError, OSError):
-            continue  # reported as its own replay fails
-        apply_overrides(session, physics)
+            continue  # this recording's own trouble: reported as its replay fails
         return
 
 
@@ -199,12 +201,11 @@ def _check_output_paths(args) -> None:
             _refuse_replacing_other(given, option)
 
 
-# What a file an output replaces must begin with: what vade-replay writes there (a table's
-# header, a rerun recording's magic). Anything else (a recording, a session) is refused
-# without --force: an engineer's trial found --csv over a participant's recording replacing
-# it with a table.
-_OUTPUT_STARTS = {"--csv": b"recording,", "--events": b"recording,", "--poses": b"recording,",
-                  "--rerun": b"RRF"}
+# A table or a review never replaces, without --force, a recording or a session (JSON) by a
+# slip: a researcher's trial found --csv over a participant's recording replacing it. Any
+# other file (an older table, one re-saved by a spreadsheet, another tool's CSV) is
+# replaced, as an output is; a review's place takes a review (rerun's magic) or nothing.
+_OUTPUT_STARTS = {"--rerun": b"RRF"}
 
 
 def _refuse_replacing_other(path: str, option: str) -> None:
@@ -216,14 +217,16 @@ def _refuse_replacing_other(path: str, option: str) -> None:
             head = stream.read(16)
     except OSError:
         return  # unreadable: writing it says why (ensure_writable)
-    if head.startswith(_OUTPUT_STARTS[option]):
+    recording = head.startswith(b"\x89MCAP")
+    session = head.lstrip(b"\xef\xbb\xbf \t\r\n").startswith((b"{", b"["))
+    start = _OUTPUT_STARTS.get(option)
+    if not (recording or session) and (start is None or head.startswith(start)):
         return
-    what = "a recording" if head.startswith(b"\x89MCAP") else \
-        "a JSON file (a session?)" if head.lstrip().startswith((b"{", b"[")) else \
-        ("a rerun recording" if head.startswith(b"RRF") else "another file")
+    what = "a recording" if recording else "a JSON file (a session?)" if session \
+        else "a file that is not a rerun review"
     kind = "review" if option == "--rerun" else "table"
-    raise ConfigError(f"{path} holds {what}, not a {kind} vade-replay wrote; pass --force to "
-                      "replace it, or choose another file", field=option)
+    raise ConfigError(f"{path} holds {what}, not a {kind}; pass --force to replace it, or "
+                      "choose another file", field=option)
 
 
 def _where(path: str) -> Path:

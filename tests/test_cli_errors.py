@@ -722,12 +722,17 @@ def test_an_output_holding_another_recording_is_not_replaced_without_force(tmp_p
     _assert_clean_error(other, str(out), "another session ('drop_on_table')", "--force")
     assert out.read_bytes() == kept and not list(tmp_path.glob("*.partial"))
     edited = json.loads(drop.read_text())
-    edited["tracker"]["duration_s"] = 2.0
+    edited["parts"][0]["density"] = 2000  # the session's design edited, the same input
     session = _write(tmp_path, edited)
     changed = run_cli("vade-record", str(session), "-o", str(out))
     assert changed.returncode == 0 and (f"note: replacing {out}, a recording of "
                                         "'drop_on_table' made otherwise (its session "
                                         "differed)") in changed.stderr
+    # Another take (other tracker input, which may exist nowhere else): refused.
+    edited["tracker"]["devices"]["right_hand"][1]["position"][0] += 0.01
+    take = run_cli("vade-record", str(_write(tmp_path, edited)), "-o", str(out))
+    _assert_clean_error(take, "a recording of 'drop_on_table' with other tracker input",
+                        "--force")
     old = tmp_path / "old.mcap"
     shutil.copy(Path(__file__).parent / "data" / "shaft_slide_off_before_analytic4.mcap", old)
     (tmp_path / "slide.json").write_bytes(Recording(old).session.raw)

@@ -190,13 +190,19 @@ def _pin_in_bore(radius_mm: float, passing: str | None = None) -> dict:
 @pytest.mark.parametrize("radius_mm", [4.9, 4.95])
 def test_a_pin_with_less_clearance_than_the_tolerance_slides_down_its_bore(radius_mm):
     """The trial's pin, 0.1 or 0.05 mm of radial clearance (the contact tolerance is 0.1
-    mm): passing the bore's rim at that distance all the way down, it used to be blocked
-    there, or half way down (``passing_contact: block``), and was never placed. It falls
-    freely down the vertical bore (no load across it, so no friction): z = z0 - g t^2 / 2
-    from its snap onto the bore's mouth, to the round-off of nanosecond times, and is
-    placed on the plate."""
+    mm): passing the bore's rim at that distance all the way down, it is blocked there
+    (``passing_contact: block``, the default) and never placed, unless the tolerance is
+    under the clearance, or ``passing_contact: pass`` (experimental). Then it falls freely
+    down the vertical bore (no load across it, so no friction): z = z0 - g t^2 / 2 from
+    its snap onto the bore's mouth, to the round-off of nanosecond times, and is placed on
+    the plate."""
     from conftest import run_records
-    records = run_records(_pin_in_bore(radius_mm))
+    blocked = run_records(_pin_in_bore(radius_mm))
+    assert "reached_final_pose" not in [e.cause for r in blocked for e in r.events]
+    tighter = _pin_in_bore(radius_mm)
+    tighter["physics"]["contact_tolerance"] = 0.5 * (5.0 - radius_mm)  # in mm
+    assert "reached_final_pose" in [e.cause for r in run_records(tighter) for e in r.events]
+    records = run_records(_pin_in_bore(radius_mm, passing="pass"))
     causes = [e.cause for r in records for e in r.events if e.kind == "ModeChanged"]
     assert causes == ["grabbed", "released_on_constraint", "reached_final_pose"]
     assert "blocked_by_base" not in [e.cause for r in records for e in r.events]
@@ -213,8 +219,6 @@ def test_a_pin_with_less_clearance_than_the_tolerance_slides_down_its_bore(radiu
         assert pin.position[2] == pytest.approx(z0 - 0.5 * 9.81 * t * t, abs=1e-9)
     else:
         raise AssertionError("never placed")
-    blocked = run_records(_pin_in_bore(radius_mm, passing="block"))
-    assert "reached_final_pose" not in [e.cause for r in blocked for e in r.events]
 
 
 def _deep_bore(radius_mm: float, depth_mm: float, lug: bool = False) -> dict:
@@ -243,9 +247,12 @@ def test_a_pin_passing_its_rim_stops_on_the_plate_not_short_of_it(depth_mm):
     """A review: passing its bore's rim 0.05 mm clear, a pin was blocked where it first met
     the rim once the plate came within twenty tolerances of its travel, up to 2 mm short
     of the plate (a bore 36 mm deep), and never placed. It is stopped where the plate is
-    half the tolerance away, and placed (0.5 mm final tolerance)."""
+    half the tolerance away, and placed (0.5 mm final tolerance; ``passing_contact:
+    pass``)."""
     from conftest import run_records
-    records = run_records(_deep_bore(4.95, depth_mm))
+    doc = _deep_bore(4.95, depth_mm)
+    doc["physics"]["passing_contact"] = "pass"
+    records = run_records(doc)
     assert records[-1].parts[0].mode == "PLACED"
     bottom = records[-1].parts[0].position[2] - (depth_mm + 20) / 2000 - 0.955
     assert abs(bottom) < 1e-9  # placed: put at its final pose, on the plate
@@ -255,8 +262,8 @@ def test_a_pin_that_passed_its_rim_still_turns_on_the_plate():
     """A review: having passed its rim and stopped a hundredth of a millimetre off the
     plate, a pin with a lug could never turn again (every move started nearer than a tenth
     of the tolerance and was blocked). Stopped half the tolerance off, it swings about the
-    bore when the base tilts, as a pin with room to spare (4.85 mm) does; held at the rim
-    (``passing_contact: block``) it does not."""
+    bore when the base tilts (``passing_contact: pass``), as a pin with room to spare
+    (4.85 mm) does; held at the rim (``block``, the default) it does not."""
     from conftest import run_records
 
     def turned(radius: float, passing: str | None) -> float:
@@ -273,5 +280,5 @@ def test_a_pin_that_passed_its_rim_still_turns_on_the_plate():
             return sp.quat_mul(sp.quat_conj(r.base.rotation_xyzw), r.parts[0].rotation_xyzw)
         return sp.quat_angle_between(relative(records[100]), relative(records[-1]))
     assert turned(4.85, None) > 0.1
-    assert turned(4.95, None) > 0.1
-    assert turned(4.95, "block") < 1e-9
+    assert turned(4.95, "pass") > 0.1
+    assert turned(4.95, None) < 1e-9

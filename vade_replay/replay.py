@@ -607,11 +607,12 @@ def refuse_replacing(out: str | Path, session: Session, scene: Scene) -> str | N
     """``vade-record``'s and ``vade-replay -o``'s guard (``--force`` skips it), before a
     run writes ``out``: a file there that is a recording of another session, or no
     recording, is refused (an engineer's trial found a study's recording replaced by
-    another session's without a word). A recording of this session is replaced: silently
-    where it is this recording made again (the same session, files and physics), else
-    with the note returned, for the command to print (the loop of editing a session and
-    recording it again is not refused; a review found an older version's recording
-    replaced without a word)."""
+    another session's without a word), and so is one of this session with other tracker
+    input (another take: its input may exist nowhere else). One with the same input is
+    replaced: silently where it is this recording made again (the same session and
+    physics), else with the note returned, for the command to print (the loop of editing
+    a session's parts or physics and recording it again is not refused; a review found an
+    older version's recording replaced without a word)."""
     path = Path(out)
     if not path.exists() or in_place(path):
         return None
@@ -625,9 +626,14 @@ def refuse_replacing(out: str | Path, session: Session, scene: Scene) -> str | N
     if theirs.name != session.name:
         raise ConfigError(f"it holds a recording of another session ({theirs.name!r}); pass "
                           "--force to replace it, or choose another output", file=str(out))
+    if theirs.doc.get("tracker") != session.doc.get("tracker") or theirs.files != session.files:
+        # Another take, or another participant on the same session template: its tracker
+        # input may exist nowhere else (a review).
+        raise ConfigError(f"it holds a recording of {session.name!r} with other tracker input "
+                          "(another take?); pass --force to replace it, or choose another "
+                          "output", file=str(out))
     differs = [what for what, same in (
         ("its session", theirs.doc == session.doc),
-        ("its files", theirs.files == session.files),
         ("its physics", physics is None
          or physics == physics_metadata(scene.physics))) if not same]
     if not differs:
@@ -1249,8 +1255,7 @@ _DERIVED = {"slide_step_s": ("slide_integrator", "slide_max_step_s", "onbase_max
 # the key's other value keeps, for replaying such recordings as they were made.
 _BEFORE_THE_KEY = {"slide_onset": "sub_step", "slide_off": "frame_end",
                    "final_pose_check": "frame_end", "block_cut": "both",
-                   "block_event": "always", "flight_grace": "whole_base",
-                   "passing_contact": "block"}
+                   "block_event": "always", "flight_grace": "whole_base"}
 
 
 def _step_in_effect(recorded: dict, bound: str, before: float):

@@ -123,11 +123,12 @@ class Physics:
     # base until then, as before 2026-11-23 (a block let go against a wall fell along it
     # through the plate below).
     flight_grace: str = "touched"
-    # pass: a part moving on the base that comes within the contact tolerance of it without
-    # moving into it (a pin passing its bore's rim with less clearance than the tolerance)
-    # goes on to what it does move into; block: blocked there, as before 2026-11-23 (such
-    # a pin stopped at the rim, or half way down the bore).
-    passing_contact: str = "pass"
+    # block: a part moving on the base that comes within the contact tolerance of it is
+    # blocked there, even where it would only pass it (a pin with less radial clearance
+    # than the tolerance is held at its bore's rim: lower the tolerance). pass (experimental,
+    # 2026-11-23): it goes on to what it moves into; reviews found it stopping a collared
+    # pin above its seat and a fast tight pin mid-bore (docs/DEVELOPMENT.md).
+    passing_contact: str = "block"
     turn_integrator: str = "yoshida6"        # paper: eq. 11 once per frame
     # Longest sub-steps on the base, read through turn_step_s / slide_step_s. None: the
     # default below, or onbase_max_step_s where a session sets that (for both).
