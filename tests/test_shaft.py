@@ -282,3 +282,34 @@ def test_a_pin_that_passed_its_rim_still_turns_on_the_plate():
     assert turned(4.85, None) > 0.1
     assert turned(4.95, "pass") > 0.1
     assert turned(4.95, None) < 1e-9
+
+
+@pytest.mark.parametrize("radius_mm, said", [(4.8, False), (4.9, True), (4.95, True)])
+def test_a_fit_tighter_than_the_contact_tolerance_is_warned_of(radius_mm, said):
+    """The trial's pin, held at its bore's rim with nothing said why: vade-record says
+    it passes the base within the contact tolerance on its way to its final pose, and
+    how clear (the worst of a few angles about the axis: a 32-gon's chord lies 0.024 mm
+    inside its corners at 5 mm), and to set the tolerance under that. Not with room to
+    spare (0.2 mm), nor with the tolerance set under the clearance."""
+    from vade_replay.collision import CollisionWorld
+    from vade_replay.replay import scene_warnings
+
+    from conftest import make_session
+
+    def warned(doc) -> list[str]:
+        session = make_session(doc)
+        scene = session.build_scene()
+        return [w for w in scene_warnings(scene, CollisionWorld(scene), session.doc)
+                if "passes the base" in w]
+    found = warned(_pin_in_bore(radius_mm))
+    assert bool(found) is said
+    if said:
+        (warning,) = found
+        clear = float(warning.split("passes the base ")[1].split(" mm")[0])
+        # Between the worst alignment (corner against chord) and the best (corners).
+        assert 5.0 * math.cos(math.pi / 32) - radius_mm - 1e-3 <= clear <= 5.0 - radius_mm
+        assert warning.endswith(f"set contact_tolerance under {clear:.2g} mm (in the "
+                                "session's units)")
+        tighter = _pin_in_bore(radius_mm)
+        tighter["physics"]["contact_tolerance"] = 0.9 * clear
+        assert warned(tighter) == []

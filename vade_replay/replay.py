@@ -815,7 +815,7 @@ def _box_gap(a: tuple[list[float], list[float]], b: tuple[list[float], list[floa
 
 
 def _depth_into_base(collision: CollisionWorld, part: str, k: int, mate: cn.Mate, pose,
-                     reach: float) -> float:
+                     reach: float, passes: list[float] | None = None) -> float:
     """How far short of ``pose`` the base stops the part coming along its constraint from
     outside the base: from either end of an axis, from the open side of a plane; 0 if it
     gets there (touching is there). The part starts beyond everything (``reach``: its own
@@ -832,17 +832,26 @@ def _depth_into_base(collision: CollisionWorld, part: str, k: int, mate: cn.Mate
     short = []
     for sign in ((1.0, -1.0) if mate.kind == "axis" else (1.0,)):
         s = far
+        nearest = math.inf  # the nearest it passes the base, far (> 2 mm) from the pose
         for _ in range(_APPROACH_STEPS):
             moved = Pose(tuple(p + sign * s * a for p, a in zip(pose.position, axis)),
                          pose.rotation)
             d = collision.base_distance(part, k, moved, mode)
             if d <= _APPROACH_TOL_M or s <= 0.0:
                 break
+            if s > _PASSING_FAR_M:
+                nearest = min(nearest, d)
             s = max(0.0, s - d)
         short.append(max(s, 0.0))
+        if passes is not None and s <= _INSIDE_BASE_M:
+            passes.append(nearest)  # an approach that gets there: what it passed on the way
     return min(short)
 
 
+# An approach passing the base this near (m) while still this far from the pose is passing
+# it (a pin its bore's rim), not arriving (``scene_warnings``: a fit tighter than the
+# contact tolerance).
+_PASSING_FAR_M = 0.002
 # The approach of ``_depth_into_base``: its contact tolerance (m) and its step budget.
 _APPROACH_TOL_M = 1e-5
 _APPROACH_STEPS = 5000
@@ -1097,13 +1106,35 @@ def scene_warnings(scene: Scene, collision: CollisionWorld,
                        "of it")
             continue
         snapped = cn.recognise(mate, final) or final
+        passes: list[float] = []
         depth = _depth_into_base(collision, body.name, k, mate, snapped,
-                                 body.reach_from_origin)
+                                 body.reach_from_origin, passes)
         if depth > _INSIDE_BASE_M:
             out.append(f"parts[{i}].assembly.final_pose: puts {body.name} about "
                        f"{depth * 1e3:.2g} mm into the base (on {mate.name}): the base stops "
                        "the part that far short of it, so it is placed only if that gap is "
                        "within final_tolerance")
+        tol = scene.physics.contact_tolerance
+        if mate.kind == "axis" and passes and min(passes) < 2.0 * tol:
+            # A polygon's clearance to another turns with it, and a part keeps the angle
+            # about the axis it is let go at: a few angles (a 32-gon repeats every 11.25
+            # degrees).
+            u, c = mate.base_dirs[0], mate.base_points[0]
+            for angle in (0.05, 0.1, 0.15):
+                q = sp.quat_unit_axis_angle(u, angle)
+                turned = Pose(sp.add(c, sp.quat_rotate(q, sp.sub(snapped.position, c))),
+                              sp.quat_mul(q, snapped.rotation))
+                _depth_into_base(collision, body.name, k, mate, turned,
+                                 body.reach_from_origin, passes)
+        clear = min(passes, default=math.inf)
+        if clear < tol and scene.physics.passing_contact == "block":
+            # (An engineer's trial: a pin 0.05 mm clear of its bore's rim was held there,
+            # never placed, and nothing said why.)
+            out.append(f"parts[{i}].assembly.constraints[{k}]: {body.name} passes the base "
+                       f"{clear * 1e3:.2g} mm clear on its way along {mate.name} to its "
+                       f"final pose (a bore's rim?), within physics.contact_tolerance "
+                       f"({tol * 1e3:.2g} mm): it is blocked there; set contact_tolerance "
+                       f"under {clear * 1e3:.2g} mm (in the session's units)")
     # What a resting part can lie on: the environment, a fixed base, another part.
     fixed = [_world_box(b, b.initial_pose) for b in scene.environment]
     if scene.base is not None and scene.base_fixed:
