@@ -711,8 +711,8 @@ def fallen_past_everything(scene: Scene, last: FrameRecord, first_time_ns: int) 
     if norm == 0.0 or not scene.environment:
         return []
     down = sp.scale(g, 1.0 / norm)
-    lowest = max(sp.dot(_world_corner, down) for body in scene.environment
-                 for _world_corner in _corners(body, body.initial_pose))
+    lowest = max(sp.dot(corner, down) for body in scene.environment
+                 for corner in _corners(body, body.initial_pose))
     out = []
     t = (last.time_ns - first_time_ns) / 1e9
     for snap in last.parts:
@@ -726,6 +726,7 @@ def fallen_past_everything(scene: Scene, last: FrameRecord, first_time_ns: int) 
 
 
 def _corners(body, pose) -> list[sp.Vec3]:
+    """The corners of the body's own box, posed."""
     lo, hi = body.bbox_min, body.bbox_max
     return [pose.apply((x, y, z)) for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
             for z in (lo[2], hi[2])]
@@ -800,9 +801,7 @@ _INSIDE_BASE_M = 0.001
 
 def _world_box(body, pose) -> tuple[list[float], list[float]]:
     """A world box around the posed body: its own box's corners, posed (so never smaller)."""
-    lo, hi = body.bbox_min, body.bbox_max
-    world = [pose.apply((x, y, z)) for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
-             for z in (lo[2], hi[2])]
+    world = _corners(body, pose)
     return ([min(p[k] for p in world) for k in range(3)],
             [max(p[k] for p in world) for k in range(3)])
 
