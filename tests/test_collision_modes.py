@@ -138,3 +138,82 @@ def test_feature_geometry_is_built_once_per_constraint():
     assert len(mate.base_feature_faces) > 0 and len(mate.part_feature_faces) > 0
     assert not mate.base_feature_faces.flags.writeable
     assert set(world._mates) == {("sleeve", 0)}
+
+
+def test_radial_extent_of_triangles_against_closed_forms():
+    """A face's least and greatest distance from an axis (z through the origin), of the
+    triangle, not its corners: a fan triangle of a disc reaches the axis (0); an annulus's
+    triangle comes to its inner chord, r cos(pi / n); a wall of a bore lies between the
+    chord and the corners; a triangle off to one side, to its nearest edge; a triangle
+    along the axis (its shadow a segment) to the segment."""
+    n, r, big = 32, 5.0, 12.0
+    a0, a1 = 0.0, 2.0 * math.pi / n
+    ring = [(r * math.cos(a), r * math.sin(a)) for a in (a0, a1)]
+    outer = [(big * math.cos(a), big * math.sin(a)) for a in (a0, a1)]
+    vertices = np.array([
+        (0.0, 0.0, 0.0), (*ring[0], 0.0), (*ring[1], 0.0),          # disc fan
+        (*outer[0], 0.0),                                            # annulus
+        (*ring[0], 1.0), (*ring[1], 1.0),                            # bore wall
+        (3.0, 4.0, 0.0), (6.0, 8.0, 0.0), (3.0, 4.0, 2.0),           # off to one side
+        (1.0, -1.0, 0.0), (1.0, 1.0, 5.0), (1.0, 3.0, 0.0)])         # across x = 1
+    faces = np.array([(0, 1, 2), (1, 3, 2), (1, 2, 5), (6, 7, 8), (9, 10, 11)])
+    least, most = cn.radial_extent(vertices, faces, (0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+    chord = r * math.cos(math.pi / n)
+    assert least[0] == 0.0 and most[0] == pytest.approx(r, abs=1e-12)
+    assert least[1] == pytest.approx(chord, abs=1e-12) and most[1] == pytest.approx(big)
+    assert least[2] == pytest.approx(chord, abs=1e-12) and most[2] == pytest.approx(r)
+    assert least[3] == pytest.approx(5.0) and most[3] == pytest.approx(10.0)
+    assert least[4] == pytest.approx(1.0) and most[4] == pytest.approx(math.hypot(1, 3))
+    # Along another axis: the same faces about x through (0, 0, 0) by a rotation.
+    turn = sp.quat_from_euler_deg(0.0, 90.0, 0.0)
+    moved = np.array([sp.quat_rotate(turn, tuple(v)) for v in vertices.tolist()])
+    axis = sp.quat_rotate(turn, (0.0, 0.0, 1.0))
+    least2, most2 = cn.radial_extent(moved, faces, (0.0, 0.0, 0.0), axis)
+    assert np.allclose(least2, least, atol=1e-12) and np.allclose(most2, most, atol=1e-12)
+
+
+def _pin_and_bore(pin_radius: float):
+    """A 32-gon pin and a boss with a 5 mm bore on a plate, as trimesh builds them, and
+    how many of the base's faces are the boss's (they come first)."""
+    import trimesh
+    pin = trimesh.creation.cylinder(radius=pin_radius, height=0.04, sections=32)
+    boss = trimesh.creation.annulus(r_min=0.005, r_max=0.012, height=0.02, sections=32)
+    boss.apply_translation((0.0, 0.0, 0.015))
+    plate = trimesh.creation.box((0.12, 0.08, 0.01))
+    base = trimesh.util.concatenate([boss, plate])
+    return pin.vertices, pin.faces, base.vertices, base.faces, len(boss.faces)
+
+
+@pytest.mark.parametrize("pin_radius, fits", [(0.005, True), (0.00495, True),
+                                              (0.0049, True), (0.0048, False),
+                                              (0.0053, False)])
+def test_radial_fits_leave_out_the_rim_within_the_tolerance_and_nothing_else(pin_radius,
+                                                                             fits):
+    """The base faces a pin never meets: its bore's rim (the boss's top, whose inner chords
+    are 4.976 mm from the axis) while the pin is no wider than that plus the tolerance (0.1
+    mm) and no narrower than that less it; never the plate under the bore (it crosses the
+    axis), and nothing for a pin 0.3 mm too wide (a collision) or 0.18 mm clear (the rim
+    is farther than the tolerance anyway)."""
+    pv, pf, bv, bf, boss = _pin_and_bore(pin_radius)
+    # As a constraint of radius 5 mm builds it: the base without the bore's wall.
+    wall = cn.axis_feature_faces(bv, bf, (0.0, 0.0, 0.0), (0.0, 0.0, 1.0), 0.005, TOL)
+    rest = np.setdiff1d(np.arange(len(bf)), wall)
+    groups = cn.radial_fits(pv, pf, (0.0, 0.0, 0.0), (0.0, 0.0, 1.0), bv, bf,
+                            (0.0, 0.0, 0.0), (0.0, 0.0, 1.0), rest, TOL)
+    if not fits:
+        assert groups == []
+        return
+    (part_faces, skipped), = groups
+    assert sorted(part_faces.tolist()) == list(range(len(pf)))  # every face of the pin
+    least, _ = cn.radial_extent(bv, bf[skipped], (0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+    # Triangles with two corners on the inner ring come to its chord; with one, to it.
+    chord = 0.005 * math.cos(math.pi / 32)
+    assert np.all(np.isclose(least, chord, rtol=0, atol=1e-12)
+                  | np.isclose(least, 0.005, rtol=0, atol=1e-12))
+    # The boss's top and bottom annuli: every one of their triangles, and only those (not
+    # its outer wall, 12 mm out, nor its bore's wall, which SKIP_COAXIAL leaves out anyway).
+    radial = np.hypot(bv[:, 0], bv[:, 1])
+    outer_wall = np.all(np.isclose(radial[bf], 0.012), axis=1)
+    annuli = [i for i in range(boss) if i not in set(wall.tolist()) and not outer_wall[i]]
+    assert len(annuli) == 4 * 32
+    assert sorted(skipped.tolist()) == annuli

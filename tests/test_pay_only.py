@@ -172,17 +172,23 @@ def _pin_near_the_teeth(angle_deg: float, gap_m: float) -> dict:
     return doc
 
 
-@pytest.mark.parametrize("passing", ["block", "pass"])
+@pytest.mark.parametrize("physics, blocks", [
+    ({"coaxial_fit": "faces", "passing_contact": "block"}, True),
+    ({"coaxial_fit": "faces", "passing_contact": "pass"}, False),
+    ({}, False)])
 @pytest.mark.parametrize("angle", [15, 180])
-def test_a_tooth_turning_into_a_pin_within_tolerance_is_blocked(monkeypatch, angle, passing):
+def test_a_tooth_turning_into_a_pin_within_tolerance_is_blocked(monkeypatch, angle, physics,
+                                                                blocks):
     """The envelope shortcut must not skip a contact: a part not touching the base at the
     frame's start is checked along its path, and a tooth coming within the tolerance of a
-    pin blocks the swing (found by a review: an earlier rule skipped it). That is
-    ``passing_contact: block``; with ``pass`` (the default since 2026-11-23) the tips,
-    which pass the pin 0.07 mm clear, are not stopped by it, and the shortcut must not
-    change that either."""
+    pin blocks the swing (found by a review: an earlier rule skipped it). That is with the
+    pin met as before 2026-11-23 (``coaxial_fit: faces``, ``passing_contact: block``); with
+    ``pass`` the tips, which pass the pin 0.07 mm clear, are not stopped by it, nor by
+    default (``coaxial_fit: radial``: the tips are no farther than 40 mm from the shaft
+    and the pin no nearer than 40.07 mm, so they never meet), and the shortcut must not
+    change either."""
     doc = _pin_near_the_teeth(angle, 7e-5)
-    doc.setdefault("physics", {})["passing_contact"] = passing
+    doc.setdefault("physics", {}).update(physics)
     session = make_session(doc)
     fast, _ = _run(session)
     monkeypatch.setattr(step_module, "_INSIDE_ENVELOPE", False)
@@ -190,7 +196,7 @@ def test_a_tooth_turning_into_a_pin_within_tolerance_is_blocked(monkeypatch, ang
     assert _values(fast) == _values(slow)
     blocked = [e for r in fast for e in r.events
                if e.kind == "ContactMade" and e.cause == "blocked_by_base"]
-    assert bool(blocked) is (passing == "block")
+    assert bool(blocked) is blocks
 
 
 @pytest.mark.parametrize("angle", [15, 180])

@@ -88,6 +88,11 @@ class _MateGeometry:
     part_feature_faces: np.ndarray
     base_feature_faces: np.ndarray
     base_rest_faces: np.ndarray
+    # SKIP_COAXIAL with ``physics.coaxial_fit`` radial where the part has fits
+    # (``Mate.fit_groups``): the part's model and the base's object of each query, and
+    # their triangles; their least distance is the part's. None: the whole part against
+    # the rest, one query.
+    fit_pairs: tuple | None
 
 
 @dataclass(eq=False)
@@ -206,8 +211,9 @@ class CollisionWorld:
                 if body.assembly is None:
                     continue
                 for index, mate in enumerate(body.assembly.mates):
-                    self._mates[(body.name, index)] = self._mate_geometry(body, base, mate,
-                                                                         whole, identity)
+                    self._mates[(body.name, index)] = self._mate_geometry(
+                        body, base, mate, whole, identity,
+                        scene.physics.coaxial_fit == "radial")
         # The base's surfaces (``base_surfaces``), made when a part first leaves the base:
         # a flight passes those it touched as it left until the two have separated once.
         self._base_surfaces: list[_Surface] | None = None
@@ -230,7 +236,8 @@ class CollisionWorld:
         return model
 
     @staticmethod
-    def _mate_geometry(body: Body, base: Body, mate: Mate, whole, identity) -> _MateGeometry:
+    def _mate_geometry(body: Body, base: Body, mate: Mate, whole, identity,
+                       radial: bool) -> _MateGeometry:
         def obj(model):
             return None if model is None else fcl.CollisionObject(model, identity)
         sweep = None
@@ -240,11 +247,28 @@ class CollisionWorld:
         part_feature = body.faces[mate.part_feature_faces]
         base_feature = base.faces[mate.base_feature_faces]
         base_rest = base.faces[mate.base_rest_faces]
+        rest_obj = obj(_bvh_of(base.vertices, base_rest))
+        pairs: tuple | None = None
+        if radial and mate.fit_groups:
+            # Each group of the part's faces against the rest less what it never meets;
+            # the faces in no group against the whole rest.
+            queries = []
+            grouped = np.concatenate([faces for faces, _ in mate.fit_groups])
+            ungrouped = np.setdiff1d(np.arange(len(body.faces)), grouped)
+            for faces, skipped in [(ungrouped, np.zeros(0, dtype=np.int64)),
+                                   *mate.fit_groups]:
+                if not len(faces):
+                    continue
+                kept = base.faces[np.setdiff1d(mate.base_rest_faces, skipped)]
+                model, other = _bvh_of(body.vertices, body.faces[faces]), \
+                    obj(_bvh_of(base.vertices, kept))
+                if model is not None and other is not None:
+                    queries.append((model, other, body.faces[faces], kept))
+            pairs = tuple(queries)
         return _MateGeometry(
             _bvh_of(body.vertices, part_feature), obj(_bvh_of(base.vertices, base_feature)),
-            obj(_bvh_of(base.vertices, base_rest)), whole, sweep,
-            0.5 * (mate.part_span[0] + mate.part_span[1]), part_feature, base_feature,
-            base_rest)
+            rest_obj, whole, sweep, 0.5 * (mate.part_span[0] + mate.part_span[1]),
+            part_feature, base_feature, base_rest, pairs)
 
     def _models(self, part: str, geometry: _MateGeometry, mode: CheckMode):
         """The part's model and the base's object that ``mode`` compares, and the triangles
@@ -264,10 +288,18 @@ class CollisionWorld:
 
         ``inf`` when the mode leaves nothing of the base to check against.
         """
-        model, other, _, _ = self._models(part, self._mates[(part, mate)], mode)
+        geometry = self._mates[(part, mate)]
+        pose = sp.Pose(sp.add(base_from_part.position, lift), base_from_part.rotation)
+        if mode is SKIP_COAXIAL and geometry.fit_pairs is not None:
+            transform = _transform(pose)
+            d = float("inf")
+            for model, other, _, _ in geometry.fit_pairs:
+                self.stats["fcl_distance_queries"] += 1
+                d = min(d, _distance(fcl.CollisionObject(model, transform), other))
+            return d
+        model, other, _, _ = self._models(part, geometry, mode)
         if model is None or other is None:
             return float("inf")
-        pose = sp.Pose(sp.add(base_from_part.position, lift), base_from_part.rotation)
         self.stats["fcl_distance_queries"] += 1
         return _distance(fcl.CollisionObject(model, _transform(pose)), other)
 
@@ -285,7 +317,8 @@ class CollisionWorld:
         """
         geometry = self._mates[(part, mate)]
         model, other, part_faces, base_faces = self._models(part, geometry, mode)
-        if model is None or other is None:
+        pairs = geometry.fit_pairs if mode is SKIP_COAXIAL else None
+        if pairs is None and (model is None or other is None):
             return float("inf")
         pose = sp.Pose(sp.add(base_from_part.position, lift), base_from_part.rotation)
         transform = _transform(pose)
@@ -296,10 +329,21 @@ class CollisionWorld:
             d = _distance(fcl.CollisionObject(witness[0], transform), witness[1])
             if d <= tol - _WITNESS_MARGIN_M:
                 return d
-        self.stats["fcl_distance_queries"] += 1
         result = fcl.DistanceResult()
-        d = fcl.distance(fcl.CollisionObject(model, transform), other, fcl.DistanceRequest(),
-                         result)
+        if pairs is None:
+            self.stats["fcl_distance_queries"] += 1
+            d = fcl.distance(fcl.CollisionObject(model, transform), other,
+                             fcl.DistanceRequest(), result)
+        else:
+            # The nearest of the fit's queries, and its triangles for the witness.
+            d = float("inf")
+            for model, other, faces_p, faces_b in pairs:
+                self.stats["fcl_distance_queries"] += 1
+                found = fcl.DistanceResult()
+                d_pair = fcl.distance(fcl.CollisionObject(model, transform), other,
+                                      fcl.DistanceRequest(), found)
+                if d_pair < d:
+                    d, result, part_faces, base_faces = d_pair, found, faces_p, faces_b
         if d <= tol and 0 <= result.b1 < len(part_faces) and 0 <= result.b2 < len(base_faces):
             body, base = self._bodies[part], self._base_vertices
             self._witnesses[key] = (

@@ -70,6 +70,12 @@ class Mate:
     part_feature_faces: np.ndarray     # indices into the part's faces (read-only)
     base_feature_faces: np.ndarray     # indices into the base's faces (read-only)
     base_rest_faces: np.ndarray        # the base's other faces: what can block the part
+    # axis: pairs of (part faces, faces of ``base_rest_faces``) that never meet: turning
+    # and sliding keep every point's distance from the axis, and the part's faces lie
+    # within a radius that the base's lie outside of, less the tolerance (a pin and its
+    # bore's rim, a collar and its counterbore). Only base faces the part's come within the
+    # tolerance of radially are listed (``physics.coaxial_fit`` radial; ``collision``).
+    fit_groups: tuple = ()
 
     # Derived once, on first use (a frozen dataclass without slots keeps these in its
     # __dict__; they are not fields, so they take no part in repr or construction).
@@ -108,6 +114,101 @@ def _axis_distance(vertices: np.ndarray, point: sp.Vec3, direction: sp.Vec3) -> 
     along = rel @ np.asarray(direction)
     perp = rel - np.outer(along, np.asarray(direction))
     return np.sqrt(np.einsum("ij,ij->i", perp, perp))
+
+
+def radial_extent(vertices: np.ndarray, faces: np.ndarray, point: sp.Vec3,
+                  direction: sp.Vec3) -> tuple[np.ndarray, np.ndarray]:
+    """Each face's least and greatest distance from an axis: of the triangle itself, not
+    only its corners (a disc across the axis comes to 0; an annulus's inner edge, a chord,
+    comes nearer than its corners). In the plane across the axis, the least is 0 where
+    the triangle's shadow covers the axis, else the nearest of its three edges."""
+    u = np.asarray(direction, dtype=np.float64)
+    rel = vertices - np.asarray(point, dtype=np.float64)
+    e1 = np.cross(u, (1.0, 0.0, 0.0) if abs(u[0]) < 0.9 else (0.0, 1.0, 0.0))
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(u, e1)
+    x, y = (rel @ e1)[faces], (rel @ e2)[faces]          # (n, 3): the shadow's corners
+    most = np.sqrt((x * x + y * y).max(axis=1))
+    # Edges a->b, b->c, c->a at once: the nearest point of each to the axis (the origin).
+    x0, y0 = x, y
+    x1, y1 = np.roll(x, -1, axis=1), np.roll(y, -1, axis=1)
+    dx, dy = x1 - x0, y1 - y0
+    length2 = dx * dx + dy * dy
+    t = np.clip(-(x0 * dx + y0 * dy) / np.where(length2 > 0.0, length2, 1.0), 0.0, 1.0)
+    px, py = x0 + t * dx, y0 + t * dy
+    least = np.sqrt((px * px + py * py).min(axis=1))
+    # Inside: the origin on the same side of all three edges (a triangle with area).
+    side = x0 * dy - y0 * dx   # cross(edge, corner -> origin), up to sign
+    area = dx[:, 0] * dy[:, 1] - dy[:, 0] * dx[:, 1]
+    covers = (area != 0.0) & ((side >= 0.0).all(axis=1) | (side <= 0.0).all(axis=1))
+    return np.where(covers, 0.0, least), most
+
+
+def _bands(values: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``values`` in bands ``tol`` wide (cells from the least up): each value's band, and
+    each band's least and greatest value."""
+    if len(values) == 0:
+        return np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0)
+    cells = np.floor((values - values.min()) / tol).astype(np.int64)
+    _, band = np.unique(cells, return_inverse=True)
+    band = np.asarray(band).reshape(-1)
+    n = int(band.max()) + 1
+    low, high = np.full(n, np.inf), np.full(n, -np.inf)
+    np.minimum.at(low, band, values)
+    np.maximum.at(high, band, values)
+    return band, low, high
+
+
+def _within(sorted_values: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """How many of ``sorted_values`` lie in each [lo, hi]."""
+    return np.searchsorted(sorted_values, hi, side="right") \
+        - np.searchsorted(sorted_values, lo, side="left")
+
+
+def radial_fits(part_vertices: np.ndarray, part_faces: np.ndarray, part_point: sp.Vec3,
+                part_axis: sp.Vec3, base_vertices: np.ndarray, base_faces: np.ndarray,
+                base_point: sp.Vec3, base_axis: sp.Vec3, rest: np.ndarray,
+                tol: float) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The part faces and base faces of ``rest`` (indices into the part's and the base's
+    faces) that a part on an axis constraint never meets, in groups.
+
+    On the axis every point keeps its distance from it. A part face no farther from the
+    axis than ``s`` and a base face no nearer than ``s - tol`` can overlap by at most the
+    tolerance: a fit, not a collision (a pin in its bore passes the rim however tight,
+    a nominal CAD fit included, as ``SKIP_COAXIAL`` already passes the bore's wall); so can
+    a part face no nearer than ``s`` and a base face no farther than ``s + tol`` (a cup
+    over a boss). The part's faces are taken in bands ``tol`` wide of their greatest and
+    of their least distance; a band leaves out the base faces within the tolerance of it
+    on the far side (those farther are farther than the tolerance anyway). Faces that
+    leave out the same base faces are one group; none where nothing is left out."""
+    least_p, most_p = radial_extent(part_vertices, part_faces, part_point, part_axis)
+    least_b, most_b = radial_extent(base_vertices, base_faces[rest], base_point, base_axis)
+    inner, _, tops = _bands(most_p, tol)
+    outer, lows, _ = _bands(least_p, tol)
+    # Inside: a band's top against base faces from it less the tolerance to it plus;
+    # outside: its bottom against faces from it less to it plus the tolerance. (The reach,
+    # a millionth over the tolerance: a face at the tolerance to the last bit is in.)
+    reach = tol * (1.0 + 1e-6)
+    near_in = _within(np.sort(least_b), tops - tol, tops + reach)
+    near_out = _within(np.sort(most_b), lows - reach, lows + tol)
+    if not near_in.any() and not near_out.any():
+        return []  # nothing apart radially within the tolerance (most scenes): one query
+    skip_in = [np.nonzero((least_b >= top - tol) & (least_b <= top + reach))[0] if n else
+               np.zeros(0, dtype=np.int64) for top, n in zip(tops.tolist(), near_in.tolist())]
+    skip_out = [np.nonzero((most_b <= low + tol) & (most_b >= low - reach))[0] if n else
+                np.zeros(0, dtype=np.int64) for low, n in zip(lows.tolist(), near_out.tolist())]
+    groups: dict[tuple[int, ...], list[np.ndarray]] = {}
+    keys, which = np.unique(np.stack([inner, outer], axis=1), axis=0, return_inverse=True)
+    which = np.asarray(which).reshape(-1)
+    for k, (i, o) in enumerate(keys.tolist()):
+        if not (near_in[i] or near_out[o]):
+            continue
+        skipped = np.union1d(skip_in[i], skip_out[o])
+        if len(skipped):
+            key = tuple(int(j) for j in rest[skipped])
+            groups.setdefault(key, []).append(np.nonzero(which == k)[0])
+    return [(np.sort(np.concatenate(faces)), np.array(key, dtype=np.int64))
+            for key, faces in groups.items()]
 
 
 def axis_feature_faces(vertices: np.ndarray, faces: np.ndarray, point: sp.Vec3,
@@ -191,6 +292,11 @@ def build_mate(*, name: str, kind: str, base_points, base_dirs, part_points, par
         r_perp, inertia, sweep = sp.ZERO3, 0.0, 0.0
         part_span = part_feature_span = base_feature_span = (0.0, 0.0)
     rest = np.setdiff1d(np.arange(len(base_faces)), base_feature)
+    fit_groups: list[tuple[np.ndarray, np.ndarray]] = []
+    if kind == "axis" and len(rest):
+        fit_groups = radial_fits(part_vertices, part_faces, part_points[0], u_p,
+                                 base_vertices, base_faces, base_points[0], u_b, rest,
+                                 geometry_tol)
     if kind != "axis":
         # SKIP_COPLANAR: base faces that lie wholly on or below a mating plane (the plate's
         # sides and bottom) can never be in the way of a part resting on top of it.
@@ -208,7 +314,8 @@ def build_mate(*, name: str, kind: str, base_points, base_dirs, part_points, par
         inertia_about_axis=inertia, cm_offset_part=r_perp, sweep_radius=sweep,
         part_span=part_span, part_feature_span=part_feature_span,
         base_feature_span=base_feature_span, part_feature_faces=_frozen_index(part_feature),
-        base_feature_faces=_frozen_index(base_feature), base_rest_faces=_frozen_index(rest))
+        base_feature_faces=_frozen_index(base_feature), base_rest_faces=_frozen_index(rest),
+        fit_groups=tuple((_frozen_index(a), _frozen_index(b)) for a, b in fit_groups))
 
 
 # --- recognition and snapping (step time, plain floats) ---------------------------------

@@ -1129,11 +1129,16 @@ def scene_warnings(scene: Scene, collision: CollisionWorld,
         if clear < tol and scene.physics.passing_contact == "block":
             # (An engineer's trial: a pin 0.05 mm clear of its bore's rim was held there,
             # never placed, and nothing said why.)
+            # (With coaxial_fit radial, what passes within the tolerance is not a fit about
+            # the axis: faces beside each other, a key in its keyway.)
+            radial = scene.physics.coaxial_fit == "radial"
+            what, or_radial = ("", "") if radial \
+                else (" (a bore's rim?)", ", or physics.coaxial_fit radial")
             out.append(f"parts[{i}].assembly.constraints[{k}]: {body.name} passes the base "
                        f"{clear * 1e3:.2g} mm clear on its way along {mate.name} to its "
-                       f"final pose (a bore's rim?), within physics.contact_tolerance "
+                       f"final pose{what}, within physics.contact_tolerance "
                        f"({tol * 1e3:.2g} mm): it is blocked there; set contact_tolerance "
-                       f"under {clear * 1e3:.2g} mm (in the session's units)")
+                       f"under {clear * 1e3:.2g} mm (in the session's units){or_radial}")
     # What a resting part can lie on: the environment, a fixed base, another part.
     fixed = [_world_box(b, b.initial_pose) for b in scene.environment]
     if scene.base is not None and scene.base_fixed:
@@ -1285,7 +1290,8 @@ _DERIVED = {"slide_step_s": ("slide_integrator", "slide_max_step_s", "onbase_max
 # the key's other value keeps, for replaying such recordings as they were made.
 _BEFORE_THE_KEY = {"slide_onset": "sub_step", "slide_off": "frame_end",
                    "final_pose_check": "frame_end", "block_cut": "both",
-                   "block_event": "always", "flight_grace": "whole_base"}
+                   "block_event": "always", "flight_grace": "whole_base",
+                   "coaxial_fit": "faces"}
 
 
 def _step_in_effect(recorded: dict, bound: str, before: float):

@@ -70,6 +70,7 @@ BLOCK_CUTS = ("blamed", "both")
 BLOCK_EVENTS = ("first", "always")
 FLIGHT_GRACES = ("touched", "whole_base")
 PASSING_CONTACTS = ("pass", "block")
+COAXIAL_FITS = ("radial", "faces")
 RELEASE_VELOCITIES = ("window_fit_stops", "window_fit", "two_frame")
 
 
@@ -124,11 +125,19 @@ class Physics:
     # through the plate below).
     flight_grace: str = "touched"
     # block: a part moving on the base that comes within the contact tolerance of it is
-    # blocked there, even where it would only pass it (a pin with less radial clearance
-    # than the tolerance is held at its bore's rim: lower the tolerance). pass (experimental,
-    # 2026-11-23): it goes on to what it moves into; reviews found it stopping a collared
-    # pin above its seat and a fast tight pin mid-bore (docs/DEVELOPMENT.md).
+    # blocked there, even where it would only pass it (a key between guides; with
+    # coaxial_fit faces, a pin with less radial clearance than the tolerance at its bore's
+    # rim: lower the tolerance). pass (experimental, 2026-11-23): it goes on to what it
+    # moves into; reviews found it stopping a collared pin above its seat and a fast tight
+    # pin mid-bore (docs/DEVELOPMENT.md).
     passing_contact: str = "block"
+    # radial: on an axis constraint, the part within the constraint's radius (a pin) does
+    # not meet the base outside it (a bore's rim): turning and sliding keep every point's
+    # distance from the axis (``constraints.Mate.base_fit_faces``), so a pin passes its
+    # rim however tight the fit, a nominal one included. faces: only the base's faces
+    # within the radius are left out, as before 2026-11-23 (a pin with less radial
+    # clearance than the contact tolerance was held at its bore's rim).
+    coaxial_fit: str = "radial"
     turn_integrator: str = "yoshida6"        # paper: eq. 11 once per frame
     # Longest sub-steps on the base, read through turn_step_s / slide_step_s. None: the
     # default below, or onbase_max_step_s where a session sets that (for both).
@@ -149,6 +158,7 @@ class Physics:
             ("block_event", self.block_event, BLOCK_EVENTS),
             ("flight_grace", self.flight_grace, FLIGHT_GRACES),
             ("passing_contact", self.passing_contact, PASSING_CONTACTS),
+            ("coaxial_fit", self.coaxial_fit, COAXIAL_FITS),
             ("turn_integrator", self.turn_integrator, TURN_INTEGRATORS))
         for name, value, allowed in choices:
             if value not in allowed:
