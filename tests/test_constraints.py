@@ -339,9 +339,14 @@ def test_a_final_pose_off_every_constraint_or_inside_the_base_and_a_floating_par
     constraint["part"]["point"] = [0.1, 0, 0]  # the axis beside the sleeve, not in its bore
     beside, final_off = warnings(doc)  # and so the final pose is 100 mm off it too
     assert final_off.startswith("parts[0].assembly.final_pose: on none")
+    # The nearest face: a triangle of the sleeve's outside (a 32-gon of 25 mm) with corners
+    # at 0 and 11.25 degrees, its farther corner reaching |(100, 0) - 25 (cos, sin)| mm.
+    a = math.pi / 16
+    reach = math.hypot(100 - 25 * math.cos(a), 25 * math.sin(a))
     assert beside.startswith("parts[0].assembly.constraints[0].part: no face of sleeve lies "
-                             "within bore_on_shaft's radius of its axis (the nearest vertex "
-                             "is 65 mm beyond it)")
+                             "within bore_on_shaft's radius (10 mm) of its axis: the nearest "
+                             f"reaches {reach:.4g} mm from it (a part wider than its "
+                             "constraint is held at the base's rim"), beside
     constraint["part"]["point"] = [0, 0, 0]
     doc["parts"][0]["pose"]["position"][2] += 0.1
     (floating,) = warnings(doc)

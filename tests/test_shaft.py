@@ -443,3 +443,22 @@ def test_a_key_tighter_than_the_tolerance_in_its_keyway_is_still_warned_of():
     assert _passing_warnings(cup) == []
     causes = [e.cause for r in run_records(cup) for e in r.events if e.kind == "ModeChanged"]
     assert causes == ["grabbed", "released_on_constraint", "reached_final_pose"]
+
+
+def test_a_pin_too_wide_for_its_constraint_is_warned_of():
+    """A pin 0.3 mm wider than its 5 mm constraint has no face within the radius: it is
+    not a fit, and vade-record says how far its nearest face reaches (the corners of the
+    32-gon, 5.3 mm). It used to say the nearest vertex was "-5 mm beyond" the radius (the
+    centre of the pin's end, on the axis)."""
+    from vade_replay.collision import CollisionWorld
+    from vade_replay.replay import scene_warnings
+
+    from conftest import make_session
+    session = make_session(_pin_in_bore(5.3))
+    scene = session.build_scene()
+    said = [w for w in scene_warnings(scene, CollisionWorld(scene), session.doc)
+            if "no face of pin" in w]
+    assert said == ["parts[0].assembly.constraints[0].part: no face of pin lies within "
+                    "pin_in_bore's radius (5 mm) of its axis: the nearest reaches 5.3 mm "
+                    "from it (a part wider than its constraint is held at the base's rim, "
+                    "or leaves the constraint at once): check point, direction and radius"]

@@ -1065,11 +1065,15 @@ def scene_warnings(scene: Scene, collision: CollisionWorld,
                 # wider than the shaft's radius, so its side is only warned of.
                 where = f"parts[{i}].assembly.constraints[{k}].part"
                 if mate.kind == "axis":
-                    gap = float(cn._axis_distance(body.vertices, mate.part_points[0],
-                                                  mate.part_dirs[0]).min()) - mate.radius
+                    # The face that comes nearest to lying within: its farthest corner.
+                    _, most = cn.radial_extent(body.vertices, body.faces,
+                                               mate.part_points[0], mate.part_dirs[0])
+                    reach = float(most.min())
                     out.append(f"{where}: no face of {body.name} lies within {mate.name}'s "
-                               f"radius of its axis (the nearest vertex is {gap * 1e3:.3g} "
-                               "mm beyond it): check point, direction and radius")
+                               f"radius ({mate.radius * 1e3:.4g} mm) of its axis: the "
+                               f"nearest reaches {reach * 1e3:.4g} mm from it (a part wider "
+                               "than its constraint is held at the base's rim, or leaves "
+                               "the constraint at once): check point, direction and radius")
                 else:
                     out.append(f"{where}: no face of {body.name} lies in {mate.name}'s "
                                "plane, facing out along its normal: check point and normal")
