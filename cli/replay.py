@@ -134,6 +134,8 @@ def _main(args, overrides: dict[str, str]) -> int:
         raise ConfigError("-o and --rerun take one recording at a time",
                           field="-o" if args.output else "--rerun")
     _check_physics_overrides(args.recordings, overrides)
+    if len(args.recordings) > 1:
+        _check_part_overrides(args.recordings, overrides)
     # The tables are opened (as temporary files beside them) before any replay, so that a
     # study's batch fails at once on one it cannot write; they replace their paths only
     # when the whole run is done.
@@ -173,6 +175,30 @@ def _check_physics_overrides(recordings: list[str], overrides: dict[str, str]) -
         except (VadeError, OSError):
             continue  # this recording's own trouble: reported as its replay fails
         return
+
+
+def _check_part_overrides(recordings: list[str], overrides: dict[str, str]) -> None:
+    """Of several recordings (a study), a ``--set`` of a part or tool is applied where the
+    session has it and left out elsewhere (a researcher's trial: a what-if of a part that
+    some of a study's sessions lack failed on those); one that none of them has is a slip,
+    one error before anything is written, as is a field the part cannot take."""
+    keys = {k: v for k, v in overrides.items() if k.startswith(("parts.", "tools."))}
+    for key, value in keys.items():
+        why = None  # why the first readable session cannot take it
+        for path in recordings:
+            try:
+                session = Recording(path).session
+            except (VadeError, OSError):
+                continue  # this recording's own trouble: reported as its replay fails
+            absent: dict[str, str] = {}
+            apply_overrides(session, {key: value}, absent=absent)  # a bad field: raised
+            if key not in absent:
+                break
+            why = why or f"{path}: {absent[key]}"
+        else:
+            if why is not None:
+                raise ConfigError(f"none of the {len(recordings)} recordings' sessions can "
+                                  f"take it ({why})", field=key)
 
 
 # Where the run's own lines go: standard output, unless a table is written there (``-``).
@@ -293,8 +319,10 @@ def _replay_rows(path: str, overrides: dict[str, str],
     """Replay one recording of several, its frame table rows to ``streams``."""
     try:
         frame_tables = FrameTables(path, streams, header=False) if streams else None
+        # (One of several: a part or tool this session lacks is left out, not an error.)
         return "summary", replay(Recording(path), overrides=overrides,
-                                 on_frame=frame_tables, as_recorded=as_recorded).to_dict()
+                                 on_frame=frame_tables, as_recorded=as_recorded,
+                                 absent_ok=True).to_dict()
     except TableError as exc:
         if isinstance(exc.__context__, BrokenPipeError) and closed_pipe(sys.stdout):
             raise  # standard output closed by its reader: the run stops (run())
@@ -450,11 +478,15 @@ def _one_of_many(args, overrides: dict[str, str], path: str, result: tuple[str, 
     summary = SimpleNamespace(**value)  # type: ignore[arg-type]
     summaries.append({**value, "recording": path})  # type: ignore[dict-item]
     _warn(path, summary)
+    # What this session took of the what-if (a part it lacks is left out: not_applied).
+    taken = {k: v for k, v in overrides.items() if k not in (summary.not_applied or {})}
     if not args.json:
         cut = " (cut short)" if summary.truncated else ""
-        print(f"{path}: {_verdict(summary, overrides, short=True, path=path)}{cut}",
+        left = f" (not applied: {', '.join(sorted(summary.not_applied))})" \
+            if summary.not_applied else ""
+        print(f"{path}: {_verdict(summary, taken, short=True, path=path)}{left}{cut}",
               file=_lines)
-    return EXIT_OK if summary.match or overrides else EXIT_DIVERGED
+    return EXIT_OK if summary.match or taken else EXIT_DIVERGED
 
 
 def _warn(path: str, summary) -> None:

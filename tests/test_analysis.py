@@ -444,3 +444,45 @@ def test_the_study_table_says_which_rows_are_as_recorded_and_where_a_what_if_cha
     assert what_if[0]["first_event_change_frame"] != ""
     assert what_if[0]["overrides"] == ("physics.gravity_scale_free=0.5; "
                                        "physics.release_velocity=two_frame")
+
+
+def test_a_studys_what_if_of_a_part_applies_where_the_session_has_it(tmp_path):
+    """A researcher's trial: a what-if of a part that only some of a study's sessions have
+    failed (exit 2) on the others, and a researcher had to pick the files. It is applied
+    where the session has the part, left out elsewhere (said on the line, in a warning, in
+    the table's not_applied column and in --json), and a part none of them has is one error
+    before anything is written. One recording alone still refuses it."""
+    import csv
+    sleeve, gear = str(RECORDINGS / "shaft_placed.mcap"), str(RECORDINGS / "gear_pendulum.mcap")
+    table = tmp_path / "study.csv"
+    # 20 kg: more than two hands lift (15 kg), so the sleeve is never picked up.
+    result = run_cli("vade-replay", sleeve, gear, "--set", "parts.sleeve.mass=20",
+                     "--csv", str(table))
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.splitlines()
+    assert lines[0].startswith(f"{sleeve}: what-if (parts.sleeve.mass=20): departs")
+    assert lines[1] == f"{gear}: match (not applied: parts.sleeve.mass)"
+    assert lines[2] == "2 recordings: 1 unchanged, 1 departed, 0 could not be replayed"
+    assert (f"warning: {gear}: --set parts.sleeve.mass not applied: no part 'sleeve' in "
+            "this session (its parts: gear)") in result.stderr
+    rows = {r["part"]: r for r in csv.DictReader(table.open(newline=""))}
+    assert rows["sleeve"]["overrides"] == "parts.sleeve.mass=20"
+    assert rows["sleeve"]["not_applied"] == "" and rows["sleeve"]["grabs"] == "0"
+    assert rows["gear"]["overrides"] == "" and rows["gear"]["match"] == "True"
+    assert rows["gear"]["not_applied"] == "parts.sleeve.mass"
+    as_json = json.loads(run_cli("vade-replay", sleeve, gear, "--set",
+                                 "parts.sleeve.mass=20", "--json").stdout)
+    assert as_json[0]["not_applied"] == {} and as_json[0]["overrides"] == {
+        "parts.sleeve.mass": 20}
+    assert as_json[1]["not_applied"] == {
+        "parts.sleeve.mass": "no part 'sleeve' in this session (its parts: gear)"}
+    assert as_json[1]["overrides"] == {}
+    table.unlink()
+    none = run_cli("vade-replay", sleeve, gear, "--set", "parts.spacer.mass=1",
+                   "--csv", str(table))
+    assert none.returncode == 2 and not table.exists() and none.stdout == ""
+    assert none.stderr == ("error: field parts.spacer.mass: none of the 2 recordings' "
+                           f"sessions can take it ({sleeve}: no part 'spacer' in this "
+                           "session (its parts: sleeve))\n")
+    alone = run_cli("vade-replay", gear, "--set", "parts.sleeve.mass=20")
+    assert alone.returncode == 2 and "no part 'sleeve' in this session" in alone.stderr

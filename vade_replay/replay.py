@@ -84,6 +84,9 @@ class RunSummary:
     # last bits).
     first_event_change: dict | None = None
     overrides: dict = field(default_factory=dict)
+    # A study's what-if keys this session could not take (a part or tool it does not
+    # have): key -> why. Its other keys were applied; with none, it is a plain replay.
+    not_applied: dict = field(default_factory=dict)
     counters: dict = field(default_factory=dict)
     # Physics this run used that differs from what the recording was made with, other than
     # the what-if's own changes: a default changed since (name -> recorded, now).
@@ -144,7 +147,7 @@ ANALYSIS_COLUMNS = ("recording", "session", "match", "first_divergence_frame", "
                     "duration_s", "part", *PART_COUNTS, "placed_at_s",
                     *(f"s_{mode.value}" for mode in Mode), "session_refused_grabs", "error",
                     "overrides", "truncated", "release_misses", "units", "mass_kg",
-                    "as_recorded", "first_event_change_frame")
+                    "as_recorded", "first_event_change_frame", "not_applied")
 
 
 # The run frame by frame as tables (``vade-replay --events``, ``--poses``), for a study's own
@@ -209,6 +212,8 @@ def analysis_rows(recording: str, summary: dict) -> list[dict]:
                "as_recorded": "" if summary.get("as_recorded") is None else (
                    "; ".join(f"{key}={_as_text(value)}" for key, value
                              in sorted(summary["as_recorded"].items())) or "none changed"),
+               # A study's what-if keys this session lacks the part or tool of.
+               "not_applied": "; ".join(sorted(summary.get("not_applied") or {})),
                # A what-if's first frame whose events differ from the recording's.
                "first_event_change_frame": (summary.get("first_event_change") or {}).get(
                    "frame", ""),
@@ -356,6 +361,15 @@ def _finite_numbers(value) -> bool:
     return True
 
 
+class AbsentTarget(ConfigError):
+    """A ``--set`` of a part or tool this session does not have (a study's other sessions
+    may: ``apply_overrides(absent=...)``); ``reason`` says so without the usage."""
+
+    def __init__(self, reason: str, usage: str, *, field: str) -> None:
+        self.reason = reason
+        super().__init__(f"{reason}; {usage}", field=field)
+
+
 def _override_target(doc: dict, physics: dict, key: str) -> dict:
     """The block of the session document that ``key`` (``physics.NAME`` or
     ``tools.TOOL.FIELD``) changes; a key that names nothing is a ConfigError naming it."""
@@ -373,8 +387,8 @@ def _override_target(doc: dict, physics: dict, key: str) -> dict:
             if candidate.get("name") == tool:
                 return candidate
         known = ", ".join(t.get("name", "?") for t in doc.get("tools", [])) or "none"
-        raise ConfigError(f"no tool {tool!r} in this session (its tools: {known}); use "
-                          "tools.TOOL.FIELD=VALUE", field=key)
+        raise AbsentTarget(f"no tool {tool!r} in this session (its tools: {known})",
+                           "use tools.TOOL.FIELD=VALUE", field=key)
     if key.startswith("parts."):
         return _constraint_target(doc, key)
     raise ConfigError("only physics parameters, tools and parts can be changed: "
@@ -405,8 +419,8 @@ def _constraint_target(doc: dict, key: str) -> dict:
     named = [name for name in parts if rest.startswith(name + ".")]
     if not named:
         first = rest.split(".")[0]
-        raise ConfigError(f"no part {first!r} in this session (its parts: "
-                          f"{', '.join(sorted(parts)) or 'none'}); {usage}", field=key)
+        raise AbsentTarget(f"no part {first!r} in this session (its parts: "
+                           f"{', '.join(sorted(parts)) or 'none'})", usage, field=key)
     name = max(named, key=len)
     part, field = parts[name], rest[len(name) + 1:]
     if field == "mass":
@@ -486,7 +500,8 @@ def _in_session_units(key: str, text: str, units: str) -> str:
                       "the session's units)", field=key)
 
 
-def apply_overrides(session: Session, overrides: dict[str, str]) -> tuple[Session, dict]:
+def apply_overrides(session: Session, overrides: dict[str, str], *,
+                    absent: dict[str, str] | None = None) -> tuple[Session, dict]:
     """The session as if its ``physics`` block said ``NAME: VALUE`` for each override
     ``physics.NAME``, its tool ``TOOL`` said ``FIELD: VALUE`` for each ``tools.TOOL.FIELD``
     (a tool's lifting limit or reach: would a smaller hoist have done?), and a part's
@@ -500,6 +515,10 @@ def apply_overrides(session: Session, overrides: dict[str, str]) -> tuple[Sessio
     change: ``model`` brings that model's own schemes (the session's explicit choices of
     them are dropped unless also overridden), and a friction override applies to every
     constraint, also those that set their own friction in the session.
+
+    With ``absent`` (a dict), a part or tool the session does not have is not an error: the
+    key is left out of what is applied and put in ``absent`` with why (a study's what-if
+    of a part that only some of its sessions have).
     """
     if not overrides:
         return session, {}
@@ -509,7 +528,13 @@ def apply_overrides(session: Session, overrides: dict[str, str]) -> tuple[Sessio
     # A part's own values after physics' (a physics friction clears the constraints' own).
     for key, text in sorted(overrides.items(), key=lambda kv: (kv[0].startswith("parts."),
                                                              kv[0])):
-        target = _override_target(doc, physics, key)
+        try:
+            target = _override_target(doc, physics, key)
+        except AbsentTarget as exc:
+            if absent is None:
+                raise
+            absent[key] = exc.reason
+            continue
         text = _in_session_units(key, text, doc.get("units", "m"))
         try:
             value = strict_json(text)
@@ -1375,7 +1400,8 @@ def as_made(recording: Recording) -> tuple[Session, dict | None]:
 def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
            out: str | Path | None = None,
            on_frame: Callable[[ReplayFrame], None] | None = None,
-           as_recorded: bool = False, replace_other: bool = True) -> RunSummary:
+           as_recorded: bool = False, replace_other: bool = True,
+           absent_ok: bool = False) -> RunSummary:
     """Replay a recording from its inputs alone and check every derived message.
 
     With ``overrides`` the scene's physics is changed first (a what-if replay); the check
@@ -1386,21 +1412,28 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     the recording was made with (``as_made``), not this version's: a replay that proves an
     older recording still reproduces where a default moved since (with ``overrides``, a
     what-if of that physics). With ``replace_other`` False, a file at ``out`` other than
-    this regenerated recording made again is refused first (``refuse_replacing``).
+    this regenerated recording made again is refused first (``refuse_replacing``). With
+    ``absent_ok``, an override of a part or tool the session does not have is left out
+    (``RunSummary.not_applied``, and a warning) instead of an error: one of a study's
+    sessions in a what-if of a part the others have.
     """
     restored = None
     session = recording.session
     if as_recorded:
         # A what-if (``overrides``) then changes the physics the recording was made with.
         session, restored = as_made(recording)
-    session, applied = apply_overrides(session, overrides or {})
+    absent: dict[str, str] = {}
+    session, applied = apply_overrides(session, overrides or {},
+                                       absent=absent if absent_ok else None)
     scene = session.build_scene()
     collision = CollisionWorld(scene)
     summary = RunSummary(session.name, parts=[p.name for p in scene.parts], overrides=applied,
                          units=session.doc.get("units", "m"),
                          masses_kg={p.name: p.mass_kg for p in scene.parts},
                          physics_changed=physics_changes(recording, scene.physics, applied),
-                         warnings=_introduced(session, recording.session) if applied else [])
+                         warnings=_introduced(session, recording.session) if applied else [],
+                         not_applied=absent)
+    summary.warnings += [f"--set {key} not applied: {why}" for key, why in absent.items()]
     if any(key.startswith("parts.") and key.endswith((".mass", ".density"))
            for key in applied):
         # (A mass is weighed against the part's shape: the scene's warning, not the file's.)
