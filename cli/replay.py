@@ -283,7 +283,8 @@ def _write_table(table: TableFile, summaries: list[dict]) -> None:
     """The analysis of every replayed recording as CSV (``replay.ANALYSIS_COLUMNS``); a
     recording that could not be replayed is a row with its ``error``."""
     try:
-        writer = csv.DictWriter(table.stream, fieldnames=ANALYSIS_COLUMNS, restval="")
+        writer = csv.DictWriter(table.stream, fieldnames=ANALYSIS_COLUMNS, restval="",
+                                lineterminator="\n")
         writer.writeheader()
         for summary in summaries:
             if "error" in summary:

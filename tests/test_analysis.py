@@ -486,3 +486,21 @@ def test_a_studys_what_if_of_a_part_applies_where_the_session_has_it(tmp_path):
                            "session (its parts: sleeve))\n")
     alone = run_cli("vade-replay", gear, "--set", "parts.sleeve.mass=20")
     assert alone.returncode == 2 and "no part 'sleeve' in this session" in alone.stderr
+
+
+def test_tables_end_their_lines_with_a_newline_alone(tmp_path):
+    """A researcher's trial: the tables ended their lines with \\r\\n (csv's default, RFC
+    4180), which awk and cut keep on the last column. Every table's lines end with \\n,
+    and the last column reads clean."""
+    paths = {option: tmp_path / f"{option[2:]}.csv" for option in ("--csv", "--events",
+                                                                   "--poses")}
+    args = [x for option, path in paths.items() for x in (option, str(path))]
+    result = run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"), *args)
+    assert result.returncode == 0, result.stderr
+    for option, path in paths.items():
+        data = path.read_bytes()
+        assert b"\r" not in data and data.endswith(b"\n"), option
+        lines = data.decode().split("\n")[:-1]
+        width = len(lines[0].split(","))
+        assert len(lines) > 1 and all(line.count(",") + 1 >= width for line in lines)
+        assert lines[0].rsplit(",", 1)[1] in ("not_applied", "wz"), option

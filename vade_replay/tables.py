@@ -111,7 +111,10 @@ class FrameTables:
         self.tables = []
         for kind, (stream, option, path) in sorted(outputs.items()):
             columns, rows = FRAME_TABLES[kind]
-            writer = csv.DictWriter(stream, fieldnames=columns, restval="")
+            # Lines end with \n (csv's default is RFC 4180's \r\n, which awk and cut keep
+            # on the last column); pandas and spreadsheets read either.
+            writer = csv.DictWriter(stream, fieldnames=columns, restval="",
+                                    lineterminator="\n")
             self.tables.append((writer, rows, option, path))
             if header:
                 try:

@@ -103,7 +103,7 @@ def print_table(rows: list[dict], *, cols: list[str] | None = None, title: str |
 def write_csv(rows: list[dict], path: Path) -> Path:
     cols = columns(rows)
     with open(path, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=cols, restval="")
+        writer = csv.DictWriter(f, fieldnames=cols, restval="", lineterminator="\n")
         writer.writeheader()
         for row in rows:
             writer.writerow({k: (repr(v) if isinstance(v, float) else v) for k, v in row.items()})
