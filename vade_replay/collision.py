@@ -89,9 +89,9 @@ class _MateGeometry:
     base_feature_faces: np.ndarray
     base_rest_faces: np.ndarray
     # SKIP_COAXIAL with ``physics.coaxial_fit`` radial where the part has fits
-    # (``Mate.fit_groups``): the part's model and the base's object of each query, and
-    # their triangles; their least distance is the part's. None: the whole part against
-    # the rest, one query.
+    # (``Mate.fit_groups``): the part's model (None: the whole part's) and the base's
+    # object of each query, and their triangles; their least distance is the part's.
+    # None: the whole part against the rest, one query.
     fit_pairs: tuple | None
 
 
@@ -250,19 +250,28 @@ class CollisionWorld:
         rest_obj = obj(_bvh_of(base.vertices, base_rest))
         pairs: tuple | None = None
         if radial and mate.fit_groups:
-            # Each group of the part's faces against the rest less what it never meets;
-            # the faces in no group against the whole rest.
-            queries = []
+            # The least distance of each group of the part's faces to the rest less what
+            # that group never meets, as: the whole part against the rest less all that any
+            # group never meets (one BVH, the base's bulk), each group against what the
+            # others never meet and it does, and the faces in no group against all of that
+            # (small BVHs: rims). A model of None is the part's own (``_model``).
+            queries: list = []
+            skipped_any = np.unique(np.concatenate([k for _, k in mate.fit_groups]))
+            bulk = base.faces[np.setdiff1d(mate.base_rest_faces, skipped_any)]
             grouped = np.concatenate([faces for faces, _ in mate.fit_groups])
             ungrouped = np.setdiff1d(np.arange(len(body.faces)), grouped)
-            for faces, skipped in [(ungrouped, np.zeros(0, dtype=np.int64)),
-                                   *mate.fit_groups]:
-                if not len(faces):
+            rest_of_it: list = [(None, bulk)]
+            rest_of_it += [(faces, base.faces[np.setdiff1d(skipped_any, skipped)])
+                           for faces, skipped in [(ungrouped, np.zeros(0, dtype=np.int64)),
+                                                  *mate.fit_groups]]
+            for faces, kept in rest_of_it:
+                other = obj(_bvh_of(base.vertices, kept))
+                if other is None:
                     continue
-                kept = base.faces[np.setdiff1d(mate.base_rest_faces, skipped)]
-                model, other = _bvh_of(body.vertices, body.faces[faces]), \
-                    obj(_bvh_of(base.vertices, kept))
-                if model is not None and other is not None:
+                if faces is None:
+                    queries.append((None, other, body.faces, kept))
+                elif len(faces):
+                    model = _bvh_of(body.vertices, body.faces[faces])
                     queries.append((model, other, body.faces[faces], kept))
             pairs = tuple(queries)
         return _MateGeometry(
@@ -295,7 +304,8 @@ class CollisionWorld:
             d = float("inf")
             for model, other, _, _ in geometry.fit_pairs:
                 self.stats["fcl_distance_queries"] += 1
-                d = min(d, _distance(fcl.CollisionObject(model, transform), other))
+                d = min(d, _distance(fcl.CollisionObject(
+                    self._model(part) if model is None else model, transform), other))
             return d
         model, other, _, _ = self._models(part, geometry, mode)
         if model is None or other is None:
@@ -340,8 +350,9 @@ class CollisionWorld:
             for model, other, faces_p, faces_b in pairs:
                 self.stats["fcl_distance_queries"] += 1
                 found = fcl.DistanceResult()
-                d_pair = fcl.distance(fcl.CollisionObject(model, transform), other,
-                                      fcl.DistanceRequest(), found)
+                d_pair = fcl.distance(fcl.CollisionObject(
+                    self._model(part) if model is None else model, transform), other,
+                    fcl.DistanceRequest(), found)
                 if d_pair < d:
                     d, result, part_faces, base_faces = d_pair, found, faces_p, faces_b
         if d <= tol and 0 <= result.b1 < len(part_faces) and 0 <= result.b2 < len(base_faces):
