@@ -808,13 +808,17 @@ def release_misses(scene: Scene, record: FrameRecord, first_time_ns: int) -> lis
         score, mate, angle, distance, beyond = best  # type: ignore[misc]
         if not score <= _NEAR:
             continue  # put down or thrown elsewhere: not an attempt at this constraint
+        # A part with no face within the constraint's radius is not put onto it however
+        # near (``step._release_on_base``): that, not an end, is the miss.
+        wide = mate.kind == "axis" and len(mate.part_feature_faces) == 0 \
+            and scene.physics.coaxial_fit == "radial"
         out.append({"frame": record.frame,
                     "time_s": (record.time_ns - first_time_ns) / 1e9, "part": event.part,
                     "cause": event.cause, "nearest_constraint": mate.name,
                     "off_distance_m": distance, "distance_tolerance_m": mate.distance_tolerance,
                     "off_angle_deg": math.degrees(angle),
                     "angle_tolerance_deg": math.degrees(mate.angle_tolerance),
-                    "beyond_end_m": beyond})
+                    "beyond_end_m": 0.0 if wide else beyond, "too_wide": wide})
     return out
 
 
@@ -1096,9 +1100,9 @@ def scene_warnings(scene: Scene, collision: CollisionWorld,
                     reach = float(most.min())
                     out.append(f"{where}: no face of {body.name} lies within {mate.name}'s "
                                f"radius ({mate.radius * 1e3:.4g} mm) of its axis: the "
-                               f"nearest reaches {reach * 1e3:.4g} mm from it (a part wider "
-                               "than its constraint is held at the base's rim, or leaves "
-                               "the constraint at once): check point, direction and radius")
+                               f"nearest reaches {reach * 1e3:.4g} mm from it (such a part "
+                               "is not put onto the constraint when let go): check point, "
+                               "direction and radius")
                 else:
                     out.append(f"{where}: no face of {body.name} lies in {mate.name}'s "
                                "plane, facing out along its normal: check point and normal")
@@ -1240,8 +1244,14 @@ def describe_miss(miss: dict) -> str:
     bore_on_shaft (tolerances 5 mm, 5 deg)``."""
     beyond = miss.get("beyond_end_m") or 0.0
     end = f", {beyond * 1e3:.3g} mm beyond its end" if beyond > 0.0 else ""
+    if miss.get("too_wide"):
+        end = ", no face of it within the constraint's radius"
+
+    def small(value: float) -> float:
+        return 0.0 if abs(value) < 1e-9 else value  # round-off, not an offset (3.9e-14 mm)
     return (f"frame {miss['frame']} (t = {miss['time_s']:.3f} s): {miss['part']} released "
-            f"{miss['off_distance_m'] * 1e3:.3g} mm and {miss['off_angle_deg']:.3g} deg off "
+            f"{small(miss['off_distance_m']) * 1e3:.3g} mm and "
+            f"{small(miss['off_angle_deg']):.3g} deg off "
             f"{miss['nearest_constraint']}{end} (tolerances "
             f"{miss['distance_tolerance_m'] * 1e3:.3g} mm, {miss['angle_tolerance_deg']:.3g} "
             f"deg): {miss['cause']}")
