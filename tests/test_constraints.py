@@ -382,6 +382,10 @@ def test_a_what_if_length_may_carry_its_unit_and_means_one_length_in_any_session
             (0.015, 1.016e-4), rel=1e-15)
     _, applied = apply_overrides(metres, {"physics.grab_radius": "0.015m"})
     assert applied == {"physics.grab_radius": 0.015}
+    # Fits are in micrometres (an engineer's trial: 20um was refused).
+    for text in ("20um", "20 µm"):
+        _, applied = apply_overrides(millimetres, {"physics.contact_tolerance": text})
+        assert applied == {"physics.contact_tolerance": pytest.approx(0.02, rel=1e-15)}
     shaft = session_mod.parse((RECORDINGS / "shaft_placed.json").read_bytes(), {},
                               source="shaft_placed.json")
     key = "parts.sleeve.constraints.bore_on_shaft.tolerance.distance"

@@ -457,9 +457,9 @@ def _constraint_target(doc: dict, key: str) -> dict:
     return constraints[names.index(wanted)].setdefault(leaf.split(".")[0], {})
 
 
-_WITH_UNIT = re.compile(r"\s*(-?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([A-Za-z]+)\s*")
+_WITH_UNIT = re.compile(r"\s*(-?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([A-Za-zµ]+)\s*")
 # Units a --set value may carry: lengths (converted to the session's unit) and masses (kg).
-_LENGTH_UNITS = {**UNIT_TO_M, "cm": 0.01}
+_LENGTH_UNITS = {**UNIT_TO_M, "cm": 0.01, "um": 1e-6, "µm": 1e-6}
 _MASS_UNITS = {"kg": 1.0, "g": 1e-3}
 
 
