@@ -217,3 +217,24 @@ def test_radial_fits_leave_out_the_rim_within_the_tolerance_and_nothing_else(pin
     annuli = [i for i in range(boss) if i not in set(wall.tolist()) and not outer_wall[i]]
     assert len(annuli) == 4 * 32
     assert sorted(skipped.tolist()) == annuli
+
+
+def test_radial_extent_takes_a_polygons_sides_as_the_circle_they_stand_for():
+    """With ``arcs``, an edge between two corners on one ring of a cylinder or circle cut
+    into a polygon counts at the corners' distance (an annulus's inner chord at 5 mm, not
+    4.976 mm), and a wall's diagonal too; a flat face's edge beside the axis, whose two
+    corners are a ring of two, keeps its exact distance."""
+    import trimesh
+    boss = trimesh.creation.annulus(r_min=0.005, r_max=0.012, height=0.02, sections=32)
+    least, most = cn.radial_extent(boss.vertices, boss.faces, (0, 0, 0), (0, 0, 1), True)
+    inner = np.isclose(least, 0.005, rtol=0, atol=1e-12)
+    outer = np.isclose(least, 0.012, rtol=0, atol=1e-12)
+    # The bore's wall and the two annuli (2 x 32 triangles each) at 5 mm, the outside at 12.
+    assert np.all(inner | outer) and inner.sum() == 6 * 32 and outer.sum() == 2 * 32
+    exact, _ = cn.radial_extent(boss.vertices, boss.faces, (0, 0, 0), (0, 0, 1))
+    assert exact.min() == pytest.approx(0.005 * math.cos(math.pi / 32), abs=1e-12)
+    # A box beside the axis: its near face 40 mm out, 4 mm wide; exact either way.
+    box = trimesh.creation.box((0.004, 0.004, 0.004))
+    box.apply_translation((0.042, 0.0, 0.0))
+    near, _ = cn.radial_extent(box.vertices, box.faces, (0, 0, 0), (0, 0, 1), True)
+    assert near.min() == pytest.approx(0.040, abs=1e-12)

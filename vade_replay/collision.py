@@ -32,7 +32,7 @@ import fcl
 import numpy as np
 
 from . import spatial as sp
-from .constraints import Mate
+from .constraints import Mate, radial_extent
 from .scene import Body, Scene
 
 
@@ -264,15 +264,25 @@ class CollisionWorld:
             rest_of_it += [(faces, base.faces[np.setdiff1d(skipped_any, skipped)])
                            for faces, skipped in [(ungrouped, np.zeros(0, dtype=np.int64)),
                                                   *mate.fit_groups]]
+            # Each query's radial gap, a lower bound of its distance: the part's faces all
+            # nearer the axis than the base's, or all farther (a group's part faces far out
+            # from a shaft's end, say), to skip it where the nearer queries already found
+            # less (the bulk is first).
+            lo_p, hi_p = radial_extent(body.vertices, body.faces, mate.part_points[0],
+                                       mate.part_dirs[0])
             for faces, kept in rest_of_it:
                 other = obj(_bvh_of(base.vertices, kept))
                 if other is None:
                     continue
+                lo_b, hi_b = radial_extent(base.vertices, kept, mate.base_points[0],
+                                           mate.base_dirs[0])
                 if faces is None:
-                    queries.append((None, other, body.faces, kept))
+                    queries.append((None, other, body.faces, kept, 0.0))
                 elif len(faces):
                     model = _bvh_of(body.vertices, body.faces[faces])
-                    queries.append((model, other, body.faces[faces], kept))
+                    gap = max(0.0, float(lo_b.min()) - float(hi_p[faces].max()),
+                              float(lo_p[faces].min()) - float(hi_b.max()))
+                    queries.append((model, other, body.faces[faces], kept, gap))
             pairs = tuple(queries)
         return _MateGeometry(
             _bvh_of(body.vertices, part_feature), obj(_bvh_of(base.vertices, base_feature)),
@@ -302,7 +312,9 @@ class CollisionWorld:
         if mode is SKIP_COAXIAL and geometry.fit_pairs is not None:
             transform = _transform(pose)
             d = float("inf")
-            for model, other, _, _ in geometry.fit_pairs:
+            for model, other, _, _, gap in geometry.fit_pairs:
+                if gap >= d:
+                    continue  # no nearer than the distance found: cannot lower it
                 self.stats["fcl_distance_queries"] += 1
                 d = min(d, _distance(fcl.CollisionObject(
                     self._model(part) if model is None else model, transform), other))
@@ -347,7 +359,9 @@ class CollisionWorld:
         else:
             # The nearest of the fit's queries, and its triangles for the witness.
             d = float("inf")
-            for model, other, faces_p, faces_b in pairs:
+            for model, other, faces_p, faces_b, gap in pairs:
+                if gap >= d:
+                    continue  # no nearer than the distance found: cannot lower it
                 self.stats["fcl_distance_queries"] += 1
                 found = fcl.DistanceResult()
                 d_pair = fcl.distance(fcl.CollisionObject(
@@ -380,13 +394,23 @@ class CollisionWorld:
         base: while positive, no angle of the part can touch it. ``axis_point`` is where the
         part's own axis point sits (base axes); ``axis_rotation`` takes z onto the shaft."""
         geometry = self._mates[(part, mate)]
-        if geometry.base_rest is None:
-            return float("inf")
+        rest, floor = geometry.base_rest, float("inf")
+        if geometry.fit_pairs is not None:
+            # Radial fits: the solid against the base's bulk (what no group of the part's
+            # faces leaves out), and for the rest each query's radial gap, which no turn
+            # or slide along the axis changes (a shaft inside the part's bore lies inside
+            # its solid of revolution, and is met by none of the faces near it).
+            bulk = [q for q in geometry.fit_pairs if q[0] is None]
+            rest = bulk[0][1] if bulk else None
+            floor = min((q[4] for q in geometry.fit_pairs if q[0] is not None),
+                        default=float("inf"))
+        if rest is None:
+            return floor
         center = sp.add(axis_point, sp.quat_rotate(axis_rotation,
                                                    (0.0, 0.0, geometry.sweep_center)))
         self.stats["fcl_distance_queries"] += 1
         cylinder = fcl.CollisionObject(geometry.sweep, _transform(sp.Pose(center, axis_rotation)))
-        return _distance(cylinder, geometry.base_rest)
+        return min(floor, _distance(cylinder, rest))
 
     def _surfaces(self) -> list[_Surface]:
         """The base's faces in surfaces (``base_surfaces``), each with its box, built the

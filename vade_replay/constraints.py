@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
+from typing import Final
 
 import numpy as np
 
@@ -116,14 +117,26 @@ def _axis_distance(vertices: np.ndarray, point: sp.Vec3, direction: sp.Vec3) -> 
     return np.sqrt(np.einsum("ij,ij->i", perp, perp))
 
 
+# An edge between two corners at one distance from the axis, each on a ring (at least
+# ``_RING`` corners of the mesh at that distance and one place along the axis), that turns
+# through no more than this about the axis is a side of a cylinder or circle cut into a
+# polygon (an 8-gon's or finer): with ``arcs``, its distance is its corners' (a 32-gon of
+# 30 mm sags 0.14 mm). A flat face's edge beside the axis is not one: a ring of two.
+_ARC_COS: Final = math.cos(math.pi / 8)
+_RING: Final = 8
+_RING_QUANTUM_M: Final = 1e-9
+
+
 def radial_extent(vertices: np.ndarray, faces: np.ndarray, point: sp.Vec3,
-                  direction: sp.Vec3) -> tuple[np.ndarray, np.ndarray]:
+                  direction: sp.Vec3, arcs: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Each face's least and greatest distance from an axis: of the triangle itself, not
     only its corners (a disc across the axis comes to 0; an annulus's inner edge, a chord,
     comes nearer than its corners). In the plane across the axis, the least is 0 where
-    the triangle's shadow covers the axis, else the nearest of its three edges."""
+    the triangle's shadow covers the axis, else the nearest of its three edges; with
+    ``arcs``, an edge that is a side of a circle cut into a polygon (``_ARC_COS``) counts
+    at its corners' distance: the circle it stands for, not the polygon's sag."""
     u = np.asarray(direction, dtype=np.float64)
-    rel = vertices - np.asarray(point, dtype=np.float64)
+    rel = np.asarray(vertices, dtype=np.float64) - np.asarray(point, dtype=np.float64)
     e1 = np.cross(u, (1.0, 0.0, 0.0) if abs(u[0]) < 0.9 else (0.0, 1.0, 0.0))
     e1 /= np.linalg.norm(e1)
     e2 = np.cross(u, e1)
@@ -136,7 +149,24 @@ def radial_extent(vertices: np.ndarray, faces: np.ndarray, point: sp.Vec3,
     length2 = dx * dx + dy * dy
     t = np.clip(-(x0 * dx + y0 * dy) / np.where(length2 > 0.0, length2, 1.0), 0.0, 1.0)
     px, py = x0 + t * dx, y0 + t * dy
-    least = np.sqrt((px * px + py * py).min(axis=1))
+    near = np.sqrt(px * px + py * py)
+    if arcs and len(faces):
+        # Each vertex's ring: its distance from the axis and place along it, to a quantum;
+        # the corners of a face's edge on one ring of enough corners are an arc's.
+        along = rel @ u
+        radius = np.sqrt((rel @ e1) ** 2 + (rel @ e2) ** 2)
+        level = np.round(radius / _RING_QUANTUM_M)
+        keys = np.stack([level, np.round(along / _RING_QUANTUM_M)], axis=1)
+        _, ring, size = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+        ring = np.asarray(ring).reshape(-1)
+        on_ring = (size[ring] >= _RING)[faces]
+        corner_level, r0 = level[faces], radius[faces]
+        # (Both corners at one distance, each on a ring: a wall's diagonal joins two rings.)
+        same = (corner_level == np.roll(corner_level, -1, axis=1)) & on_ring \
+            & np.roll(on_ring, -1, axis=1) & (r0 > 0.0)
+        arc = same & (near >= _ARC_COS * r0)
+        near = np.where(arc, r0, near)
+    least = near.min(axis=1)
     # Inside: the origin on the same side of all three edges (a triangle with area).
     side = x0 * dy - y0 * dx   # cross(edge, corner -> origin), up to sign
     area = dx[:, 0] * dy[:, 1] - dy[:, 0] * dx[:, 1]
@@ -181,8 +211,9 @@ def radial_fits(part_vertices: np.ndarray, part_faces: np.ndarray, part_point: s
     of their least distance; a band leaves out the base faces within the tolerance of it
     on the far side (those farther are farther than the tolerance anyway). Faces that
     leave out the same base faces are one group; none where nothing is left out."""
-    least_p, most_p = radial_extent(part_vertices, part_faces, part_point, part_axis)
-    least_b, most_b = radial_extent(base_vertices, base_faces[rest], base_point, base_axis)
+    least_p, most_p = radial_extent(part_vertices, part_faces, part_point, part_axis, True)
+    least_b, most_b = radial_extent(base_vertices, base_faces[rest], base_point, base_axis,
+                                    True)
     inner, _, tops = _bands(most_p, tol)
     outer, lows, _ = _bands(least_p, tol)
     # Inside: a band's top against base faces from it less the tolerance to it plus;
@@ -250,8 +281,11 @@ def build_mate(*, name: str, kind: str, base_points, base_dirs, part_points, par
                turn: bool, static_friction: float, dynamic_friction: float,
                rotational_friction: float, holding_torque: float, leave_when: str, part_vertices: np.ndarray, part_faces: np.ndarray,
                mass_kg: float, center_of_mass: sp.Vec3, inertia_cm: sp.Mat3,
-               base_vertices: np.ndarray, base_faces: np.ndarray, geometry_tol: float) -> Mate:
-    """A ``Mate`` with every invariant computed once: J, spans, feature face sets."""
+               base_vertices: np.ndarray, base_faces: np.ndarray, geometry_tol: float,
+               coaxial_fit: str = "faces") -> Mate:
+    """A ``Mate`` with every invariant computed once: J, spans, feature face sets. An axis's
+    SKIP checks leave out the base's faces within the radius (the shaft, or the bore's
+    wall); with ``coaxial_fit`` radial also what never meets the part (``radial_fits``)."""
     base_dirs = tuple(sp.normalize(d) for d in base_dirs)
     part_dirs = tuple(sp.normalize(d) for d in part_dirs)
     if kind == "axis":
@@ -291,9 +325,11 @@ def build_mate(*, name: str, kind: str, base_points, base_dirs, part_points, par
             for p, n in zip(base_points, base_dirs)]))
         r_perp, inertia, sweep = sp.ZERO3, 0.0, 0.0
         part_span = part_feature_span = base_feature_span = (0.0, 0.0)
-    rest = np.setdiff1d(np.arange(len(base_faces)), base_feature)
+    radial = kind == "axis" and coaxial_fit == "radial"
+    skipped = base_feature
+    rest = np.setdiff1d(np.arange(len(base_faces)), skipped)
     fit_groups: list[tuple[np.ndarray, np.ndarray]] = []
-    if kind == "axis" and len(rest):
+    if radial and len(rest):
         fit_groups = radial_fits(part_vertices, part_faces, part_points[0], u_p,
                                  base_vertices, base_faces, base_points[0], u_b, rest,
                                  geometry_tol)

@@ -596,7 +596,8 @@ def _assembly(doc: dict, part: Body, base: Body, physics: Physics, f: float, *, 
                 part_vertices=np.asarray(part.vertices), part_faces=np.asarray(part.faces),
                 mass_kg=part.mass_kg, center_of_mass=part.center_of_mass,
                 inertia_cm=part.inertia_cm, base_vertices=np.asarray(base.vertices),
-                base_faces=np.asarray(base.faces), geometry_tol=physics.contact_tolerance)
+                base_faces=np.asarray(base.faces), geometry_tol=physics.contact_tolerance,
+                coaxial_fit=physics.coaxial_fit)
         except ValueError as exc:
             raise SessionError(str(exc), file=file, field=here) from None
         if kind == "axis" and len(mate.base_feature_faces) == 0:
