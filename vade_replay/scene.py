@@ -133,7 +133,7 @@ class Physics:
     passing_contact: str = "block"
     # radial: on an axis constraint, the part within the constraint's radius (a pin) does
     # not meet the base outside it (a bore's rim): turning and sliding keep every point's
-    # distance from the axis (``constraints.Mate.base_fit_faces``), so a pin passes its
+    # distance from the axis (``constraints.Mate.fit_groups``), so a pin passes its
     # rim however tight the fit, a nominal one included. faces: only the base's faces
     # within the radius are left out, as before 2026-11-23 (a pin with less radial
     # clearance than the contact tolerance was held at its bore's rim).
