@@ -345,8 +345,8 @@ def test_a_final_pose_off_every_constraint_or_inside_the_base_and_a_floating_par
     reach = math.hypot(100 - 25 * math.cos(a), 25 * math.sin(a))
     assert beside.startswith("parts[0].assembly.constraints[0].part: no face of sleeve lies "
                              "within bore_on_shaft's radius (10 mm) of its axis: the nearest "
-                             f"reaches {reach:.4g} mm from it (such a part is not put "
-                             "onto the constraint when let go)"), beside
+                             f"reaches {reach:.4g} mm from it: check point, direction "
+                             "and radius (with a clearance, give the larger"), beside
     constraint["part"]["point"] = [0, 0, 0]
     doc["parts"][0]["pose"]["position"][2] += 0.1
     (floating,) = warnings(doc)

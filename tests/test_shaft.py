@@ -461,22 +461,63 @@ def test_a_key_tighter_than_the_tolerance_in_its_keyway_is_still_warned_of():
 
 
 def test_a_pin_too_wide_for_its_constraint_is_warned_of():
-    """A pin 0.3 mm wider than its 5 mm constraint has no face within the radius: it is
-    not a fit, and vade-record says how far its nearest face reaches (the corners of the
-    32-gon, 5.3 mm). It used to say the nearest vertex was "-5 mm beyond" the radius (the
-    centre of the pin's end, on the axis)."""
+    """A pin 0.3 mm wider than its 5 mm bore does not fit it: vade-record says which face
+    lies across the bore's wall (the pin's end, from the axis out to the 32-gon's corners
+    at 5.3 mm), and that it is not put onto the constraint. It used to say the nearest
+    vertex was "-5 mm beyond" the radius (the centre of the pin's end, on the axis)."""
+    said = _fit_warnings(_pin_in_bore(5.3))
+    assert said == ["parts[0].assembly.constraints[0]: pin does not fit pin_in_bore: a face "
+                    "of it lies 0 to 5.3 mm from the axis, across the wall of the shaft or "
+                    "bore at 5 mm (a pin wider than its bore, a sleeve narrower than its "
+                    "shaft, a part with no bore); it is not put onto the constraint when "
+                    "let go: check the shapes, point, direction and radius"]
+
+
+def _fit_warnings(doc: dict) -> list[str]:
     from vade_replay.collision import CollisionWorld
     from vade_replay.replay import scene_warnings
 
     from conftest import make_session
-    session = make_session(_pin_in_bore(5.3))
+    session = make_session(doc)
     scene = session.build_scene()
-    said = [w for w in scene_warnings(scene, CollisionWorld(scene), session.doc)
-            if "no face of pin" in w]
-    assert said == ["parts[0].assembly.constraints[0].part: no face of pin lies within "
-                    "pin_in_bore's radius (5 mm) of its axis: the nearest reaches 5.3 mm "
-                    "from it (such a part is not put onto the constraint when let go): "
-                    "check point, direction and radius"]
+    return [w for w in scene_warnings(scene, CollisionWorld(scene), session.doc)
+            if "does not fit" in w or "no face of" in w]
+
+
+def test_a_sleeve_too_narrow_for_its_shaft_stays_on_its_end():
+    """An engineer's trial: a sleeve with a 9.7 mm bore on a 10 mm shaft passed over it and
+    was placed, nothing said (the shaft, within the radius, is never checked). It does not
+    fit: vade-record says so, and let go where the hand pushed it, 35 mm down the shaft
+    (a held part passes through anything), it is not put onto the constraint: it stays
+    there touching the base, riding with it, never placed. One 0.3 mm wider than the shaft
+    (the constraint's radius the shaft's) fits, is put on and placed, with the warning
+    that no face of it lies within the radius given."""
+    import json
+
+    from conftest import RECORDINGS, run_records
+    doc = json.loads((RECORDINGS / "shaft_placed.json").read_text())
+    doc["parts"][0]["shape"]["inner_radius"] = 0.0097
+    (said,) = _fit_warnings(doc)
+    assert said.startswith("parts[0].assembly.constraints[0]: sleeve does not fit "
+                           "bore_on_shaft: a face of it lies 9.7 to 9.7 mm from the axis, "
+                           "across the wall of the shaft or bore at 10 mm")
+    records = run_records(doc)
+    causes = [e.cause for r in records for e in r.events if e.kind == "ModeChanged"]
+    assert causes == ["grabbed", "released_touching_base"]
+    released = next(r for r in records for e in r.events
+                    if e.cause == "released_touching_base")
+
+    def on_base(r):
+        return sp.quat_rotate(sp.quat_conj(r.base.rotation_xyzw),
+                              sp.sub(r.parts[0].position, r.base.position))
+    assert on_base(records[-1]) == pytest.approx(on_base(released), abs=1e-12)
+    assert on_base(records[-1])[2] == pytest.approx(0.1, abs=1e-3)
+    loose = json.loads((RECORDINGS / "shaft_placed.json").read_text())
+    loose["parts"][0]["shape"]["inner_radius"] = 0.0103
+    (said,) = _fit_warnings(loose)
+    assert "no face of sleeve lies within bore_on_shaft's radius (10 mm)" in said
+    assert said.endswith("(with a clearance, give the larger of the shaft's and the bore's)")
+    assert run_records(loose)[-1].parts[0].mode == "PLACED"
 
 
 @pytest.mark.parametrize("radius_mm", [5.15, 5.3, 6.0])
@@ -501,6 +542,8 @@ def test_a_pin_too_wide_for_its_bore_lands_on_the_boss(radius_mm, tmp_path):
     session = tmp_path / "wide.json"
     session.write_text(json.dumps(_pin_in_bore(radius_mm)))
     result = run_cli("vade-record", str(session), "-o", str(tmp_path / "wide.mcap"))
+    reach = f"{radius_mm:.4g}"
     assert ("not on a constraint: frame 60 (t = 1.000 s): pin released 1 mm and 0 deg off "
-            "pin_in_bore, no face of it within the constraint's radius (tolerances 5 mm, "
+            "pin_in_bore, which it does not fit (a face of it 0 to "
+            f"{reach} mm from the axis, across the wall at 5 mm) (tolerances 5 mm, "
             "10 deg): released") in result.stdout

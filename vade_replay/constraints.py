@@ -77,6 +77,13 @@ class Mate:
     # bore's rim, a collar and its counterbore). Only base faces the part's come within the
     # tolerance of radially are listed (``physics.coaxial_fit`` radial; ``collision``).
     fit_groups: tuple = ()
+    # axis: () where the part fits the shaft or bore; else (least, greatest) distance from
+    # the axis of a face of it that does not, and the wall's distance (m): a part with no
+    # face within the radius and one across the wall there (``radial_misfit``: a pin wider
+    # than its bore, a disc with no bore), or a bore narrower than the shaft by more than
+    # the tolerance (a sleeve). With ``coaxial_fit`` radial it is not put onto the
+    # constraint when let go.
+    misfit: tuple = ()
 
     # Derived once, on first use (a frozen dataclass without slots keeps these in its
     # __dict__; they are not fields, so they take no part in repr or construction).
@@ -242,6 +249,34 @@ def radial_fits(part_vertices: np.ndarray, part_faces: np.ndarray, part_point: s
             for key, faces in groups.items()]
 
 
+def radial_misfit(part_vertices: np.ndarray, part_faces: np.ndarray, part_point: sp.Vec3,
+                  part_axis: sp.Vec3, base_vertices: np.ndarray, wall_faces: np.ndarray,
+                  base_point: sp.Vec3, base_axis: sp.Vec3,
+                  tol: float) -> tuple[float, float, float] | None:
+    """A part face lying across a wall of the shaft or bore, radially, by more than the
+    tolerance: its least and greatest distance from the axis and the wall's; None if the
+    part fits (every face within the wall's radius or outside it, to the tolerance, as the
+    radial fits see them: ``radial_extent`` with arcs). A bottom or an end of the shaft is
+    not a wall: a pin fits its blind bore."""
+    if len(wall_faces) == 0 or len(part_faces) == 0:
+        return None
+    least_p, most_p = radial_extent(part_vertices, part_faces, part_point, part_axis, True)
+    least_w, most_w = radial_extent(base_vertices, wall_faces, base_point, base_axis, True)
+    # Across: most_p - tol > least_w and least_p + tol < most_w, for some pair. Walls by
+    # their least distance, with the greatest of their greatest so far.
+    order = np.argsort(least_w, kind="stable")
+    least_w, most_w = least_w[order], most_w[order]
+    running = np.maximum.accumulate(most_w)
+    below = np.searchsorted(least_w, most_p - tol, side="left")
+    crossing = (below > 0) & (running[np.maximum(below - 1, 0)] > least_p + tol)
+    if not crossing.any():
+        return None
+    i = int(np.argmax(crossing))
+    # The wall it crosses: the nearest one within its span.
+    inside = np.nonzero((least_w < most_p[i] - tol) & (most_w > least_p[i] + tol))[0]
+    return float(least_p[i]), float(most_p[i]), float(least_w[inside[0]])
+
+
 def axis_feature_faces(vertices: np.ndarray, faces: np.ndarray, point: sp.Vec3,
                        direction: sp.Vec3, radius: float, tol: float) -> np.ndarray:
     """Faces lying within ``radius + tol`` of an axis: the shaft, or the wall of a bore."""
@@ -327,6 +362,39 @@ def build_mate(*, name: str, kind: str, base_points, base_dirs, part_points, par
         part_span = part_feature_span = base_feature_span = (0.0, 0.0)
     radial = kind == "axis" and coaxial_fit == "radial"
     skipped = base_feature
+    misfit = None
+    if kind == "axis" and len(base_feature):
+        # The shaft's or bore's walls: faces whose normal is square to the axis (to a
+        # degree), not its end or bottom.
+        tri = base_vertices[base_faces[base_feature]]
+        normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        lengths = np.linalg.norm(normals, axis=1)
+        along = np.abs(normals @ np.asarray(u_b)) / np.where(lengths > 0.0, lengths, 1.0)
+        is_wall = (lengths > 0.0) & (along <= math.sin(math.radians(1.0)))
+        walls = base_feature[is_wall]
+        if len(part_feature) == 0:
+            # No bore (or pin) within the radius: a part with a face across the wall does
+            # not go on (a pin wider than its bore, a disc with no bore); one clear of it
+            # does (a sleeve's bore a little wider than the shaft's radius given).
+            misfit = radial_misfit(part_vertices, part_faces, part_points[0], u_p,
+                                   base_vertices, base_faces[walls], base_points[0], u_b,
+                                   geometry_tol)
+        elif len(walls):
+            # A shaft (walls facing away from the axis) thicker than the part's bore by
+            # more than the tolerance: a sleeve narrower than its shaft.
+            centre = tri[is_wall].mean(axis=1) - np.asarray(base_points[0])
+            out = np.einsum("ij,ij->i", normals[is_wall],
+                            centre - np.outer(centre @ np.asarray(u_b), np.asarray(u_b)))
+            shaft = walls[out > 0.0]
+            if len(shaft):
+                wall, _ = radial_extent(base_vertices, base_faces[shaft], base_points[0],
+                                        u_b, True)
+                low, high = radial_extent(part_vertices, part_faces[part_feature],
+                                          part_points[0], u_p, True)
+                r = float(wall.max())
+                if float(high.max()) < r - geometry_tol:
+                    k = int(np.argmax(high))
+                    misfit = (float(low[k]), float(high[k]), r)
     rest = np.setdiff1d(np.arange(len(base_faces)), skipped)
     fit_groups: list[tuple[np.ndarray, np.ndarray]] = []
     if radial and len(rest):
@@ -351,7 +419,8 @@ def build_mate(*, name: str, kind: str, base_points, base_dirs, part_points, par
         part_span=part_span, part_feature_span=part_feature_span,
         base_feature_span=base_feature_span, part_feature_faces=_frozen_index(part_feature),
         base_feature_faces=_frozen_index(base_feature), base_rest_faces=_frozen_index(rest),
-        fit_groups=tuple((_frozen_index(a), _frozen_index(b)) for a, b in fit_groups))
+        fit_groups=tuple((_frozen_index(a), _frozen_index(b)) for a, b in fit_groups),
+        misfit=() if misfit is None else misfit)
 
 
 # --- recognition and snapping (step time, plain floats) ---------------------------------

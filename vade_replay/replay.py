@@ -808,17 +808,18 @@ def release_misses(scene: Scene, record: FrameRecord, first_time_ns: int) -> lis
         score, mate, angle, distance, beyond = best  # type: ignore[misc]
         if not score <= _NEAR:
             continue  # put down or thrown elsewhere: not an attempt at this constraint
-        # A part with no face within the constraint's radius is not put onto it however
-        # near (``step._release_on_base``): that, not an end, is the miss.
-        wide = mate.kind == "axis" and len(mate.part_feature_faces) == 0 \
-            and scene.physics.coaxial_fit == "radial"
+        # A part that does not fit the shaft or bore is not put onto it however near
+        # (``step._release_on_base``): that, not an end, is the miss.
+        misfit = mate.misfit if mate.kind == "axis" \
+            and scene.physics.coaxial_fit == "radial" else ()
         out.append({"frame": record.frame,
                     "time_s": (record.time_ns - first_time_ns) / 1e9, "part": event.part,
                     "cause": event.cause, "nearest_constraint": mate.name,
                     "off_distance_m": distance, "distance_tolerance_m": mate.distance_tolerance,
                     "off_angle_deg": math.degrees(angle),
                     "angle_tolerance_deg": math.degrees(mate.angle_tolerance),
-                    "beyond_end_m": 0.0 if wide else beyond, "too_wide": wide})
+                    "beyond_end_m": 0.0 if misfit else beyond,
+                    "misfit_m": list(misfit) if misfit else None})
     return out
 
 
@@ -1089,7 +1090,20 @@ def scene_warnings(scene: Scene, collision: CollisionWorld,
     for body in scene.parts:
         i = index[body.name]
         for k, mate in enumerate(body.assembly.mates if body.assembly else ()):
-            if len(mate.part_feature_faces) == 0:
+            if mate.kind == "axis" and mate.misfit:
+                # (An engineer's trial: a pin wider than its bore fell through the boss, a
+                # sleeve narrower than its shaft passed over it, nothing said.)
+                low, high, wall = mate.misfit
+                then = "it is not put onto the constraint when let go" \
+                    if scene.physics.coaxial_fit == "radial" \
+                    else "with coaxial_fit faces it is put on, and passes through the wall"
+                out.append(f"parts[{i}].assembly.constraints[{k}]: {body.name} does not fit "
+                           f"{mate.name}: a face of it lies {low * 1e3:.4g} to "
+                           f"{high * 1e3:.4g} mm from the axis, across the wall of the shaft "
+                           f"or bore at {wall * 1e3:.4g} mm (a pin wider than its bore, a "
+                           f"sleeve narrower than its shaft, a part with no bore); {then}: "
+                           "check the shapes, point, direction and radius")
+            elif len(mate.part_feature_faces) == 0:
                 # The base's side is refused so (scene.py); a part's bore may be a little
                 # wider than the shaft's radius, so its side is only warned of.
                 where = f"parts[{i}].assembly.constraints[{k}].part"
@@ -1100,9 +1114,9 @@ def scene_warnings(scene: Scene, collision: CollisionWorld,
                     reach = float(most.min())
                     out.append(f"{where}: no face of {body.name} lies within {mate.name}'s "
                                f"radius ({mate.radius * 1e3:.4g} mm) of its axis: the "
-                               f"nearest reaches {reach * 1e3:.4g} mm from it (such a part "
-                               "is not put onto the constraint when let go): check point, "
-                               "direction and radius")
+                               f"nearest reaches {reach * 1e3:.4g} mm from it: check point, "
+                               "direction and radius (with a clearance, give the larger of "
+                               "the shaft's and the bore's)")
                 else:
                     out.append(f"{where}: no face of {body.name} lies in {mate.name}'s "
                                "plane, facing out along its normal: check point and normal")
@@ -1244,8 +1258,11 @@ def describe_miss(miss: dict) -> str:
     bore_on_shaft (tolerances 5 mm, 5 deg)``."""
     beyond = miss.get("beyond_end_m") or 0.0
     end = f", {beyond * 1e3:.3g} mm beyond its end" if beyond > 0.0 else ""
-    if miss.get("too_wide"):
-        end = ", no face of it within the constraint's radius"
+    misfit = miss.get("misfit_m")
+    if misfit:
+        end = (f", which it does not fit (a face of it {misfit[0] * 1e3:.4g} to "
+               f"{misfit[1] * 1e3:.4g} mm from the axis, across the wall at "
+               f"{misfit[2] * 1e3:.4g} mm)")
 
     def small(value: float) -> float:
         return 0.0 if abs(value) < 1e-9 else value  # round-off, not an offset (3.9e-14 mm)

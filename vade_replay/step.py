@@ -833,12 +833,11 @@ def _release_on_base(f: _Frame, index: int, hand: str) -> bool:
         _place(f, index, Cause.RELEASED_AT_FINAL_POSE, hand=hand)
         return True
     for mate_index, mate in enumerate(assembly.mates):
-        if mate.kind == "axis" and len(mate.part_feature_faces) == 0 \
-                and f.scene.physics.coaxial_fit == "radial":
-            # No face of the part lies within the radius (a pin wider than its bore): the
-            # part would not stay on the shaft a moment (it slid off at once and fell
-            # through the boss, graced as what it touched as it left). It is let go
-            # as any part is, onto what is under it (vade-record warns of it).
+        if mate.kind == "axis" and mate.misfit and f.scene.physics.coaxial_fit == "radial":
+            # The part does not fit the shaft or bore (``Mate.misfit``: a pin wider than its
+            # bore slid off at once and fell through the boss, graced as what it touched as
+            # it left; a sleeve narrower than its shaft passed over it). It is let go as
+            # any part is, onto what is under it (vade-record warns of it).
             continue
         snapped = cn.recognise(mate, base_from_part)
         if snapped is None:
