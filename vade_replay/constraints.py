@@ -163,8 +163,9 @@ def radial_extent(vertices: np.ndarray, faces: np.ndarray, point: sp.Vec3,
         along = rel @ u
         radius = np.sqrt((rel @ e1) ** 2 + (rel @ e2) ** 2)
         level = np.round(radius / _RING_QUANTUM_M)
-        keys = np.stack([level, np.round(along / _RING_QUANTUM_M)], axis=1)
-        _, ring, size = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+        # (One complex key a vertex: np.unique on a 1-D array, not on rows.)
+        keys = level + 1j * np.round(along / _RING_QUANTUM_M)
+        _, ring, size = np.unique(keys, return_inverse=True, return_counts=True)
         ring = np.asarray(ring).reshape(-1)
         on_ring = (size[ring] >= _RING)[faces]
         corner_level, r0 = level[faces], radius[faces]
@@ -205,7 +206,8 @@ def _within(sorted_values: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.nda
 def radial_fits(part_vertices: np.ndarray, part_faces: np.ndarray, part_point: sp.Vec3,
                 part_axis: sp.Vec3, base_vertices: np.ndarray, base_faces: np.ndarray,
                 base_point: sp.Vec3, base_axis: sp.Vec3, rest: np.ndarray,
-                tol: float) -> list[tuple[np.ndarray, np.ndarray]]:
+                tol: float, part_extent: tuple[np.ndarray, np.ndarray] | None = None
+                ) -> list[tuple[np.ndarray, np.ndarray]]:
     """The part faces and base faces of ``rest`` (indices into the part's and the base's
     faces) that a part on an axis constraint never meets, in groups.
 
@@ -218,7 +220,8 @@ def radial_fits(part_vertices: np.ndarray, part_faces: np.ndarray, part_point: s
     of their least distance; a band leaves out the base faces within the tolerance of it
     on the far side (those farther are farther than the tolerance anyway). Faces that
     leave out the same base faces are one group; none where nothing is left out."""
-    least_p, most_p = radial_extent(part_vertices, part_faces, part_point, part_axis, True)
+    least_p, most_p = part_extent if part_extent is not None \
+        else radial_extent(part_vertices, part_faces, part_point, part_axis, True)
     least_b, most_b = radial_extent(base_vertices, base_faces[rest], base_point, base_axis,
                                     True)
     inner, _, tops = _bands(most_p, tol)
@@ -251,8 +254,9 @@ def radial_fits(part_vertices: np.ndarray, part_faces: np.ndarray, part_point: s
 
 def radial_misfit(part_vertices: np.ndarray, part_faces: np.ndarray, part_point: sp.Vec3,
                   part_axis: sp.Vec3, base_vertices: np.ndarray, wall_faces: np.ndarray,
-                  base_point: sp.Vec3, base_axis: sp.Vec3,
-                  tol: float) -> tuple[float, float, float] | None:
+                  base_point: sp.Vec3, base_axis: sp.Vec3, tol: float,
+                  part_extent: tuple[np.ndarray, np.ndarray] | None = None
+                  ) -> tuple[float, float, float] | None:
     """A part face lying across a wall of the shaft or bore, radially, by more than the
     tolerance: its least and greatest distance from the axis and the wall's; None if the
     part fits (every face within the wall's radius or outside it, to the tolerance, as the
@@ -260,7 +264,8 @@ def radial_misfit(part_vertices: np.ndarray, part_faces: np.ndarray, part_point:
     not a wall: a pin fits its blind bore."""
     if len(wall_faces) == 0 or len(part_faces) == 0:
         return None
-    least_p, most_p = radial_extent(part_vertices, part_faces, part_point, part_axis, True)
+    least_p, most_p = part_extent if part_extent is not None \
+        else radial_extent(part_vertices, part_faces, part_point, part_axis, True)
     least_w, most_w = radial_extent(base_vertices, wall_faces, base_point, base_axis, True)
     # Across: most_p - tol > least_w and least_p + tol < most_w, for some pair. Walls by
     # their least distance, with the greatest of their greatest so far.
@@ -363,7 +368,10 @@ def build_mate(*, name: str, kind: str, base_points, base_dirs, part_points, par
     radial = kind == "axis" and coaxial_fit == "radial"
     skipped = base_feature
     misfit = None
-    if kind == "axis" and len(base_feature):
+    # The part's faces' distances from its axis, once, for the fits and the misfit.
+    extent = radial_extent(part_vertices, part_faces, part_points[0], u_p, True) \
+        if kind == "axis" else None
+    if extent is not None and len(base_feature):
         # The shaft's or bore's walls: faces whose normal is square to the axis (to a
         # degree), not its end or bottom.
         tri = base_vertices[base_faces[base_feature]]
@@ -378,7 +386,7 @@ def build_mate(*, name: str, kind: str, base_points, base_dirs, part_points, par
             # does (a sleeve's bore a little wider than the shaft's radius given).
             misfit = radial_misfit(part_vertices, part_faces, part_points[0], u_p,
                                    base_vertices, base_faces[walls], base_points[0], u_b,
-                                   geometry_tol)
+                                   geometry_tol, extent)
         elif len(walls):
             # A shaft (walls facing away from the axis) thicker than the part's bore by
             # more than the tolerance: a sleeve narrower than its shaft.
@@ -389,8 +397,7 @@ def build_mate(*, name: str, kind: str, base_points, base_dirs, part_points, par
             if len(shaft):
                 wall, _ = radial_extent(base_vertices, base_faces[shaft], base_points[0],
                                         u_b, True)
-                low, high = radial_extent(part_vertices, part_faces[part_feature],
-                                          part_points[0], u_p, True)
+                low, high = extent[0][part_feature], extent[1][part_feature]
                 r = float(wall.max())
                 if float(high.max()) < r - geometry_tol:
                     k = int(np.argmax(high))
@@ -400,7 +407,7 @@ def build_mate(*, name: str, kind: str, base_points, base_dirs, part_points, par
     if radial and len(rest):
         fit_groups = radial_fits(part_vertices, part_faces, part_points[0], u_p,
                                  base_vertices, base_faces, base_points[0], u_b, rest,
-                                 geometry_tol)
+                                 geometry_tol, extent)
     if kind != "axis":
         # SKIP_COPLANAR: base faces that lie wholly on or below a mating plane (the plate's
         # sides and bottom) can never be in the way of a part resting on top of it.
