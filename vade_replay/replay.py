@@ -657,14 +657,36 @@ def refuse_replacing(out: str | Path, session: Session, scene: Scene) -> str | N
         raise ConfigError(f"it holds a recording of {session.name!r} with other tracker input "
                           "(another take?); pass --force to replace it, or choose another "
                           "output", file=str(out))
-    differs = [what for what, same in (
-        ("its session", theirs.doc == session.doc),
-        ("its physics", physics is None
-         or physics == physics_metadata(scene.physics))) if not same]
+    ours = physics_metadata(scene.physics)
+    differs = []
+    if theirs.doc != session.doc:
+        differs.append("its session, in " + ", ".join(_changed_fields(theirs.doc, session.doc)))
+    if physics is not None and physics != ours:
+        differs.append(f"its physics, in {', '.join(_changed_fields(physics, ours))}")
     if not differs:
         return None
     return (f"replacing {out}, a recording of {session.name!r} made otherwise "
-            f"({' and '.join(differs)} differed)")
+            f"({'; '.join(differs)})")
+
+
+def _changed_fields(theirs: dict, ours: dict, *, most: int = 6) -> list[str]:
+    """The fields that differ between two documents, a part by its name (``parts.peg``),
+    at most ``most`` and a count of the rest: what a note on replacing a recording names
+    (a researcher's trial: it said only that the session differed)."""
+    out = []
+    for key in sorted(set(theirs) | set(ours)):
+        a, b = theirs.get(key), ours.get(key)
+        if a == b:
+            continue
+        if key == "parts" and isinstance(a, list) and isinstance(b, list):
+            named_a = {str(p.get("name")): p for p in a if isinstance(p, dict)}
+            named_b = {str(p.get("name")): p for p in b if isinstance(p, dict)}
+            names = sorted(n for n in set(named_a) | set(named_b)
+                           if named_a.get(n) != named_b.get(n))
+            out += [f"parts.{n}" for n in names] or ["parts"]
+        else:
+            out.append(key)
+    return out[:most] + ([f"{len(out) - most} more"] if len(out) > most else [])
 
 
 def record(session: Session, out: str | Path, *,
