@@ -113,10 +113,13 @@ def test_a_part_lying_flat_against_the_base_is_asked_by_its_witness_pair(monkeyp
     slow, slow_stats = _run(session)
     assert _values(fast) == _values(slow)
     assert slow_stats["witness_tests"] == 0
-    # Every question is still asked, nearly all of them of one pair of triangles.
+    # Every question is still asked, nearly all of them of one pair of triangles: more
+    # than four in five (188 of 215; a question the pair does not answer may ask fcl twice,
+    # the gear's bulk and its faces that never meet the shaft's end: coaxial_fit radial).
     assert fast_stats["witness_tests"] + fast_stats["fcl_distance_queries"] \
         >= slow_stats["fcl_distance_queries"]
-    assert fast_stats["fcl_distance_queries"] * 10 < slow_stats["fcl_distance_queries"]
+    assert fast_stats["witness_tests"] > 4 * fast_stats["fcl_distance_queries"]
+    assert fast_stats["fcl_distance_queries"] * 5 < slow_stats["fcl_distance_queries"]
 
 
 def test_the_witness_pair_answers_as_the_whole_meshes_do():

@@ -547,3 +547,32 @@ def test_a_pin_too_wide_for_its_bore_lands_on_the_boss(radius_mm, tmp_path):
             "pin_in_bore, which it does not fit (a face of it 0 to "
             f"{reach} mm from the axis, across the wall at 5 mm) (tolerances 5 mm, "
             "10 deg): released") in result.stdout
+
+
+def test_a_blind_bore_stops_the_pin_on_its_bottom():
+    """A review: base faces wholly within the radius were never checked, so a pin went
+    through the bottom of a blind bore (here a plug 2 mm thick, 10 mm down the bore) to the
+    plate. With ``coaxial_fit: radial`` only the bore's walls are left out for a part with
+    a pin or a bore: the pin falls freely and stops on the plug, half the tolerance up,
+    never placed (its final pose is on the plate); as before (``faces``) it falls
+    through. (0.2 mm clear, so that it passes the rim either way.)"""
+    from conftest import run_records
+    doc = _pin_in_bore(4.8)
+    doc["base"]["shape"]["children"].append(
+        {"type": "cylinder", "radius": 5, "height": 2, "sections": 32,
+         "pose": {"position": [30, 0, 16]}})
+    records = run_records(doc)
+    assert [e.cause for r in records for e in r.events if e.kind == "ModeChanged"] == \
+        ["grabbed", "released_on_constraint", "blocked_by_base"]
+    end = records[-1].parts[0].position[2] - 0.95 - 0.02  # the pin's end, base z
+    assert end == pytest.approx(0.017 + 0.5e-4, abs=1e-6)
+    released = next(r.frame for r in records for e in r.events
+                    if e.cause == "released_on_constraint")
+    z0, t0 = records[released].parts[0].position[2], records[released].time_ns * 1e-9
+    for r in records[released + 1:]:
+        if r.parts[0].mode != "ONBASESLIDE":
+            break
+        t = r.time_ns * 1e-9 - t0
+        assert r.parts[0].position[2] == pytest.approx(z0 - 0.5 * 9.81 * t * t, abs=1e-9)
+    doc["physics"]["coaxial_fit"] = "faces"
+    assert run_records(doc)[-1].parts[0].mode == "PLACED"  # through the plug to the plate

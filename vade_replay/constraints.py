@@ -282,6 +282,18 @@ def radial_misfit(part_vertices: np.ndarray, part_faces: np.ndarray, part_point:
     return float(least_p[i]), float(most_p[i]), float(least_w[inside[0]])
 
 
+def _faces_out(vertices: np.ndarray, faces: np.ndarray, point: sp.Vec3,
+               direction: sp.Vec3) -> np.ndarray:
+    """Whether each face's normal points away from an axis (a shaft's wall, a pin's side)
+    rather than towards it (a bore's wall)."""
+    tri = vertices[faces]
+    normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    u = np.asarray(direction, dtype=np.float64)
+    centre = tri.mean(axis=1) - np.asarray(point, dtype=np.float64)
+    radial = centre - np.outer(centre @ u, u)
+    return np.einsum("ij,ij->i", normals, radial) > 0.0
+
+
 def axis_feature_faces(vertices: np.ndarray, faces: np.ndarray, point: sp.Vec3,
                        direction: sp.Vec3, radius: float, tol: float) -> np.ndarray:
     """Faces lying within ``radius + tol`` of an axis: the shaft, or the wall of a bore."""
@@ -387,13 +399,13 @@ def build_mate(*, name: str, kind: str, base_points, base_dirs, part_points, par
             misfit = radial_misfit(part_vertices, part_faces, part_points[0], u_p,
                                    base_vertices, base_faces[walls], base_points[0], u_b,
                                    geometry_tol, extent)
-        elif len(walls):
-            # A shaft (walls facing away from the axis) thicker than the part's bore by
-            # more than the tolerance: a sleeve narrower than its shaft.
-            centre = tri[is_wall].mean(axis=1) - np.asarray(base_points[0])
-            out = np.einsum("ij,ij->i", normals[is_wall],
-                            centre - np.outer(centre @ np.asarray(u_b), np.asarray(u_b)))
-            shaft = walls[out > 0.0]
+        elif len(walls) and _faces_out(part_vertices, part_faces[part_feature],
+                                       part_points[0], u_p).sum() == 0:
+            # A shaft (walls facing away from the axis) thicker than the part's bore (its
+            # faces within the radius all facing the axis: a sleeve, not a pin) by more
+            # than the tolerance: a sleeve narrower than its shaft.
+            out = _faces_out(base_vertices, base_faces[walls], base_points[0], u_b)
+            shaft = walls[out]
             if len(shaft):
                 wall, _ = radial_extent(base_vertices, base_faces[shaft], base_points[0],
                                         u_b, True)
@@ -402,6 +414,12 @@ def build_mate(*, name: str, kind: str, base_points, base_dirs, part_points, par
                 if float(high.max()) < r - geometry_tol:
                     k = int(np.argmax(high))
                     misfit = (float(low[k]), float(high[k]), r)
+        if radial and len(part_feature):
+            # A part with a bore (or a pin): only the walls are left out; a shaft's end and
+            # a blind bore's bottom are checked, the radial fits leaving out what never
+            # meets them (a sleeve's bore and the shaft's end). A part with none (a solid
+            # disc on a shaft) overlaps the shaft: everything within the radius stays out.
+            skipped = walls
     rest = np.setdiff1d(np.arange(len(base_faces)), skipped)
     fit_groups: list[tuple[np.ndarray, np.ndarray]] = []
     if radial and len(rest):
