@@ -576,3 +576,27 @@ def test_a_blind_bore_stops_the_pin_on_its_bottom():
         assert r.parts[0].position[2] == pytest.approx(z0 - 0.5 * 9.81 * t * t, abs=1e-9)
     doc["physics"]["coaxial_fit"] = "faces"
     assert run_records(doc)[-1].parts[0].mode == "PLACED"  # through the plug to the plate
+
+
+@pytest.mark.parametrize("variant", ["hex", "capped_loose"])
+def test_sleeves_that_fit_their_shaft_are_put_on_and_placed(variant):
+    """A review: a hex sleeve on a hex shaft (its flat bore is not taken for a circle) was
+    stuck on the shaft's end once the shaft's end was checked; a sleeve with a cap (a knob)
+    0.3 mm clear of its shaft, the constraint's radius the shaft's, was refused as not
+    fitting (its cap lies across the shaft's radius, above it). Both are put on and
+    placed, as shaft_placed's sleeve is."""
+    import json
+
+    from conftest import RECORDINGS, run_records
+    doc = json.loads((RECORDINGS / "shaft_placed.json").read_text())
+    sleeve = doc["parts"][0]
+    if variant == "hex":
+        sleeve["shape"]["sections"] = 6
+        doc["base"]["shape"]["children"][1]["sections"] = 6
+    else:
+        sleeve["shape"]["inner_radius"] = 0.0103
+        sleeve["shape"] = {"type": "compound", "children": [
+            sleeve["shape"], {"type": "cylinder", "radius": 0.025, "height": 0.004,
+                              "pose": {"position": [0, 0, 0.017]}}]}
+    causes = [e.cause for r in run_records(doc) for e in r.events if e.kind == "ModeChanged"]
+    assert causes == ["grabbed", "released_on_constraint", "reached_final_pose"]

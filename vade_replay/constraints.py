@@ -172,7 +172,8 @@ def radial_extent(vertices: np.ndarray, faces: np.ndarray, point: sp.Vec3,
         # (Both corners at one distance, each on a ring: a wall's diagonal joins two rings.)
         same = (corner_level == np.roll(corner_level, -1, axis=1)) & on_ring \
             & np.roll(on_ring, -1, axis=1) & (r0 > 0.0)
-        arc = same & (near >= _ARC_COS * r0)
+        # (A margin: an 8-gon's sides lie at _ARC_COS to the last bit, either side.)
+        arc = same & (near >= _ARC_COS * (1.0 - 1e-9) * r0)
         near = np.where(arc, r0, near)
     least = near.min(axis=1)
     # Inside: the origin on the same side of all three edges (a triangle with area).
@@ -294,6 +295,21 @@ def _faces_out(vertices: np.ndarray, faces: np.ndarray, point: sp.Vec3,
     return np.einsum("ij,ij->i", normals, radial) > 0.0
 
 
+def _walls_in(vertices: np.ndarray, faces: np.ndarray, point: sp.Vec3,
+              direction: sp.Vec3) -> np.ndarray:
+    """The faces (indices) along an axis (normal square to it, to a degree) that face it:
+    a bore's walls."""
+    if len(faces) == 0:
+        return np.zeros(0, dtype=np.int64)
+    tri = vertices[faces]
+    normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    lengths = np.linalg.norm(normals, axis=1)
+    u = np.asarray(direction, dtype=np.float64)
+    along = np.abs(normals @ u) / np.where(lengths > 0.0, lengths, 1.0)
+    wall = (lengths > 0.0) & (along <= math.sin(math.radians(1.0)))
+    return np.nonzero(wall & ~_faces_out(vertices, faces, point, direction))[0]
+
+
 def axis_feature_faces(vertices: np.ndarray, faces: np.ndarray, point: sp.Vec3,
                        direction: sp.Vec3, radius: float, tol: float) -> np.ndarray:
     """Faces lying within ``radius + tol`` of an axis: the shaft, or the wall of a bore."""
@@ -392,20 +408,27 @@ def build_mate(*, name: str, kind: str, base_points, base_dirs, part_points, par
         along = np.abs(normals @ np.asarray(u_b)) / np.where(lengths > 0.0, lengths, 1.0)
         is_wall = (lengths > 0.0) & (along <= math.sin(math.radians(1.0)))
         walls = base_feature[is_wall]
+        base_out = _faces_out(base_vertices, base_faces[walls], base_points[0], u_b)
         if len(part_feature) == 0:
             # No bore (or pin) within the radius: a part with a face across the wall does
             # not go on (a pin wider than its bore, a disc with no bore); one clear of it
-            # does (a sleeve's bore a little wider than the shaft's radius given).
-            misfit = radial_misfit(part_vertices, part_faces, part_points[0], u_p,
-                                   base_vertices, base_faces[walls], base_points[0], u_b,
-                                   geometry_tol, extent)
+            # does (a sleeve's bore a little wider than the shaft's radius given, with a
+            # cap or not: its bore's walls face the axis, no nearer than the shaft's).
+            bore = _walls_in(part_vertices, part_faces, part_points[0], u_p)
+            clear = bool(base_out.any()) and len(bore) > 0 \
+                and float(extent[0][bore].min()) >= float(
+                    radial_extent(base_vertices, base_faces[walls[base_out]],
+                                  base_points[0], u_b, True)[1].max()) - geometry_tol
+            if not clear:
+                misfit = radial_misfit(part_vertices, part_faces, part_points[0], u_p,
+                                       base_vertices, base_faces[walls], base_points[0],
+                                       u_b, geometry_tol, extent)
         elif len(walls) and _faces_out(part_vertices, part_faces[part_feature],
                                        part_points[0], u_p).sum() == 0:
             # A shaft (walls facing away from the axis) thicker than the part's bore (its
             # faces within the radius all facing the axis: a sleeve, not a pin) by more
             # than the tolerance: a sleeve narrower than its shaft.
-            out = _faces_out(base_vertices, base_faces[walls], base_points[0], u_b)
-            shaft = walls[out]
+            shaft = walls[base_out]
             if len(shaft):
                 wall, _ = radial_extent(base_vertices, base_faces[shaft], base_points[0],
                                         u_b, True)
@@ -414,11 +437,13 @@ def build_mate(*, name: str, kind: str, base_points, base_dirs, part_points, par
                 if float(high.max()) < r - geometry_tol:
                     k = int(np.argmax(high))
                     misfit = (float(low[k]), float(high[k]), r)
-        if radial and len(part_feature):
-            # A part with a bore (or a pin): only the walls are left out; a shaft's end and
-            # a blind bore's bottom are checked, the radial fits leaving out what never
-            # meets them (a sleeve's bore and the shaft's end). A part with none (a solid
-            # disc on a shaft) overlaps the shaft: everything within the radius stays out.
+        if radial and _faces_out(part_vertices, part_faces[part_feature], part_points[0],
+                                 u_p).any():
+            # A pin (faces within the radius facing out): only the bore's walls are left
+            # out; a blind bore's bottom is checked, the radial fits leaving out what never
+            # meets it. A sleeve keeps the shaft's end left out (a review: a hex sleeve,
+            # whose flat bore is not taken for a circle, stuck on the shaft's end), and so
+            # does a part with no face within the radius (a solid disc on a shaft).
             skipped = walls
     rest = np.setdiff1d(np.arange(len(base_faces)), skipped)
     fit_groups: list[tuple[np.ndarray, np.ndarray]] = []
