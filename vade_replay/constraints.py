@@ -295,19 +295,24 @@ def _faces_out(vertices: np.ndarray, faces: np.ndarray, point: sp.Vec3,
     return np.einsum("ij,ij->i", normals, radial) > 0.0
 
 
-def _walls_in(vertices: np.ndarray, faces: np.ndarray, point: sp.Vec3,
-              direction: sp.Vec3) -> np.ndarray:
-    """The faces (indices) along an axis (normal square to it, to a degree) that face it:
-    a bore's walls."""
-    if len(faces) == 0:
-        return np.zeros(0, dtype=np.int64)
+def _along_axis(vertices: np.ndarray, faces: np.ndarray, direction: sp.Vec3) -> np.ndarray:
+    """Whether each face lies along an axis, its normal square to it to a degree: a wall of
+    a shaft or bore, not its end or bottom."""
     tri = vertices[faces]
     normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     lengths = np.linalg.norm(normals, axis=1)
-    u = np.asarray(direction, dtype=np.float64)
-    along = np.abs(normals @ u) / np.where(lengths > 0.0, lengths, 1.0)
-    wall = (lengths > 0.0) & (along <= math.sin(math.radians(1.0)))
-    return np.nonzero(wall & ~_faces_out(vertices, faces, point, direction))[0]
+    along = np.abs(normals @ np.asarray(direction, dtype=np.float64)) \
+        / np.where(lengths > 0.0, lengths, 1.0)
+    return (lengths > 0.0) & (along <= math.sin(math.radians(1.0)))
+
+
+def _walls_in(vertices: np.ndarray, faces: np.ndarray, point: sp.Vec3,
+              direction: sp.Vec3) -> np.ndarray:
+    """The faces (indices) along an axis that face it: a bore's walls."""
+    if len(faces) == 0:
+        return np.zeros(0, dtype=np.int64)
+    return np.nonzero(_along_axis(vertices, faces, direction)
+                      & ~_faces_out(vertices, faces, point, direction))[0]
 
 
 def axis_feature_faces(vertices: np.ndarray, faces: np.ndarray, point: sp.Vec3,
@@ -400,15 +405,12 @@ def build_mate(*, name: str, kind: str, base_points, base_dirs, part_points, par
     extent = radial_extent(part_vertices, part_faces, part_points[0], u_p, True) \
         if kind == "axis" else None
     if extent is not None and len(base_feature):
-        # The shaft's or bore's walls: faces whose normal is square to the axis (to a
-        # degree), not its end or bottom.
-        tri = base_vertices[base_faces[base_feature]]
-        normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        lengths = np.linalg.norm(normals, axis=1)
-        along = np.abs(normals @ np.asarray(u_b)) / np.where(lengths > 0.0, lengths, 1.0)
-        is_wall = (lengths > 0.0) & (along <= math.sin(math.radians(1.0)))
-        walls = base_feature[is_wall]
+        # The shaft's or bore's walls, not its end or bottom; whether the part's faces
+        # within the radius face out (a pin) or all face the axis (a sleeve's bore).
+        walls = base_feature[_along_axis(base_vertices, base_faces[base_feature], u_b)]
         base_out = _faces_out(base_vertices, base_faces[walls], base_points[0], u_b)
+        pin = bool(_faces_out(part_vertices, part_faces[part_feature], part_points[0],
+                              u_p).any())
         if len(part_feature) == 0:
             # No bore (or pin) within the radius: a part with a face across the wall does
             # not go on (a pin wider than its bore, a disc with no bore); one clear of it
@@ -423,8 +425,7 @@ def build_mate(*, name: str, kind: str, base_points, base_dirs, part_points, par
                 misfit = radial_misfit(part_vertices, part_faces, part_points[0], u_p,
                                        base_vertices, base_faces[walls], base_points[0],
                                        u_b, geometry_tol, extent)
-        elif len(walls) and _faces_out(part_vertices, part_faces[part_feature],
-                                       part_points[0], u_p).sum() == 0:
+        elif len(walls) and not pin:
             # A shaft (walls facing away from the axis) thicker than the part's bore (its
             # faces within the radius all facing the axis: a sleeve, not a pin) by more
             # than the tolerance: a sleeve narrower than its shaft.
@@ -437,8 +438,7 @@ def build_mate(*, name: str, kind: str, base_points, base_dirs, part_points, par
                 if float(high.max()) < r - geometry_tol:
                     k = int(np.argmax(high))
                     misfit = (float(low[k]), float(high[k]), r)
-        if radial and _faces_out(part_vertices, part_faces[part_feature], part_points[0],
-                                 u_p).any():
+        if radial and pin:
             # A pin (faces within the radius facing out): only the bore's walls are left
             # out; a blind bore's bottom is checked, the radial fits leaving out what never
             # meets it. A sleeve keeps the shaft's end left out (a review: a hex sleeve,
