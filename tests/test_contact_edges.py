@@ -45,10 +45,30 @@ def _plane_block_wall(**edits):
     return doc
 
 
-def test_a_part_dropped_onto_the_base_lands_on_it_and_rides_with_it():
-    # The block is let go 5 cm above the plate, too far to snap onto its plane constraint.
-    # The base then tilts (15 deg, 30 deg) and, in the second run, turns over.
+def _dropped_block(landing: str = "rests") -> dict:
+    """The block let go 5 cm above the plate, too far to snap onto its plane constraint;
+    the base then tilts (15 deg, 30 deg). With ``landing`` rests (the paper's rule) it
+    lands on the plate as on any face, on no constraint."""
     doc = _plane_block_wall(**{"tracker/devices/right_hand/2/position/2": 1.032})
+    doc.setdefault("physics", {})["landing"] = landing
+    return doc
+
+
+def test_a_part_dropped_onto_its_plane_lands_on_the_constraint_and_slides_when_tilted():
+    """``physics.landing: constraints`` (the default): the block lands on its plane
+    constraint, at rest, and slides once the base tilts past the friction angle (0.3:
+    16.7 deg; the base goes to 30), into the wall. On no constraint (rests) it would ride
+    with the base without sliding."""
+    transitions = _transitions(run_records(_dropped_block("constraints")))
+    assert transitions[1:] == [("INHAND", "INSPACE", "released"),
+                               ("INSPACE", "ONBASESTATIC", "landed_on_constraint"),
+                               ("ONBASESTATIC", "ONBASESLIDE", "static_friction_exceeded"),
+                               ("ONBASESLIDE", "ONBASESTATIC", "blocked_by_base")]
+
+
+def test_a_part_dropped_onto_the_base_lands_on_it_and_rides_with_it():
+    # The base tilts (15 deg, 30 deg) and, in the second run, turns over.
+    doc = _dropped_block()
     records = run_records(doc)
     assert ("INHAND", "INSPACE", "released") in _transitions(records)
     assert ("INSPACE", "ONBASESTATIC", "landed_on_base") in _transitions(records)
@@ -118,7 +138,7 @@ def test_a_face_that_cannot_hold_the_part_does_not(where, position):
 
 def test_a_part_resting_on_a_tilted_base_stays_until_the_face_turns_over():
     # Landed on the top face; the base tilts to 70 degrees: the face still holds it up.
-    doc = _plane_block_wall(**{"tracker/devices/right_hand/2/position/2": 1.032})
+    doc = _dropped_block()
     doc["tracker"]["devices"]["left_hand"].append({"t": 3.9, "euler_deg": [-70, 0, 0]})
     transitions = _transitions(run_records(doc))
     assert ("INSPACE", "ONBASESTATIC", "landed_on_base") in transitions

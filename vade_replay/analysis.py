@@ -94,7 +94,8 @@ class SessionAnalysis:
         elif event.kind == "PartReleased":
             stats.releases += 1
         elif event.kind == "ModeChanged":
-            if event.cause in ("hit_environment", "hit_base_part", "landed_on_base"):
+            if event.cause in ("hit_environment", "hit_base_part", "landed_on_base",
+                               "landed_on_constraint", "landed_at_final_pose"):
                 stats.drops += 1
             elif event.cause == "slid_off_base":
                 stats.slid_off += 1

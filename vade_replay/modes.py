@@ -30,6 +30,10 @@ class Cause(str, Enum):
     RELEASED_ON_BASE = "released_on_constraint"
     RELEASED_ON_BASE_PART = "released_touching_base"  # touching the base, on no constraint
     LANDED_ON_BASE = "landed_on_base"    # a flying part came to rest on the base part
+    # A flying part came onto the base at a constraint it is recognised on (physics
+    # ``landing: constraints``), or at its final pose: as a release there would.
+    LANDED_ON_CONSTRAINT = "landed_on_constraint"
+    LANDED_AT_FINAL_POSE = "landed_at_final_pose"
     RELEASED_AT_FINAL_POSE = "released_at_final_pose"
     HIT_ENVIRONMENT = "hit_environment"  # stopped by the table or another environment object
     HIT_BASE = "hit_base_part"           # a flying part touched the base part (ContactMade)
@@ -70,6 +74,11 @@ _allow([Mode.INHAND], Mode.ONBASESLIDE, Cause.RELEASED_ON_BASE)
 _allow([Mode.INHAND], Mode.ONBASESTATIC, Cause.RELEASED_ON_BASE)
 _allow([Mode.INHAND, Mode.ONBASESLIDE], Mode.PLACED,
        Cause.RELEASED_AT_FINAL_POSE, Cause.REACHED_FINAL_POSE)
+# Not in the paper, which recognises constraints on release only: a part dropped onto its
+# constraint (a pin let go above its bore) goes onto it as a release there would.
+_allow([Mode.INSPACE], Mode.ONBASESLIDE, Cause.LANDED_ON_CONSTRAINT)
+_allow([Mode.INSPACE], Mode.ONBASESTATIC, Cause.LANDED_ON_CONSTRAINT)
+_allow([Mode.INSPACE], Mode.PLACED, Cause.LANDED_AT_FINAL_POSE)
 _allow([Mode.INSPACE], Mode.STATIC, Cause.HIT_ENVIRONMENT, Cause.NUMERICAL_FAULT)
 _allow([Mode.ONBASESLIDE], Mode.ONBASESTATIC, Cause.BLOCKED, Cause.FRICTION_HELD,
        Cause.NUMERICAL_FAULT)

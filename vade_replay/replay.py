@@ -725,6 +725,7 @@ def record(session: Session, out: str | Path, *,
             writer.write_frame(record_)
             summary.count(record_, first_time)
             if record_.events:
+                landed(summary.release_misses, record_)
                 summary.release_misses += release_misses(scene, record_, first_time)
             if on_frame:
                 on_frame(record_)
@@ -841,8 +842,24 @@ def release_misses(scene: Scene, record: FrameRecord, first_time_ns: int) -> lis
                     "off_angle_deg": math.degrees(angle),
                     "angle_tolerance_deg": math.degrees(mate.angle_tolerance),
                     "beyond_end_m": 0.0 if misfit else beyond,
-                    "misfit_m": list(misfit) if misfit else None})
+                    "misfit_m": list(misfit) if misfit else None,
+                    "landed": None})
     return out
+
+
+_LANDINGS = frozenset({Cause.LANDED_ON_CONSTRAINT.value, Cause.LANDED_AT_FINAL_POSE.value})
+
+
+def landed(misses: list[dict], record: FrameRecord) -> None:
+    """A part let go off its constraints that then came onto one in flight (physics
+    ``landing: constraints``: a pin dropped above its bore): its last miss says so, with
+    the frame and the cause (``landed``), so the miss does not read as the end of it."""
+    for event in record.events:
+        if event.kind == "ModeChanged" and event.cause in _LANDINGS:
+            miss = next((m for m in reversed(misses) if m["part"] == event.part), None)
+            if miss is not None and miss["landed"] is None:
+                miss["landed"] = {"frame": record.frame, "cause": event.cause,
+                                  "mode": event.to_mode}
 
 
 # A part resting at the start this far from anything under it is said to float (m).
@@ -1293,7 +1310,15 @@ def describe_miss(miss: dict) -> str:
             f"{small(miss['off_angle_deg']):.3g} deg off "
             f"{miss['nearest_constraint']}{end} (tolerances "
             f"{miss['distance_tolerance_m'] * 1e3:.3g} mm, {miss['angle_tolerance_deg']:.3g} "
-            f"deg): {miss['cause']}")
+            f"deg): {miss['cause']}{_landed_text(miss.get('landed'))}")
+
+
+def _landed_text(landing: dict | None) -> str:
+    if not landing:
+        return ""
+    where = "at its final pose" if landing["mode"] == "PLACED" else "on a constraint"
+    return (f"; then landed {where} in flight at frame {landing['frame']} "
+            f"({landing['cause']}, {landing['mode']})")
 
 
 def _kept_after(writer: RecordingWriter, target: Path | None, partial: Path,
@@ -1369,7 +1394,7 @@ _DERIVED = {"slide_step_s": ("slide_integrator", "slide_max_step_s", "onbase_max
 _BEFORE_THE_KEY = {"slide_onset": "sub_step", "slide_off": "frame_end",
                    "final_pose_check": "frame_end", "block_cut": "both",
                    "block_event": "always", "flight_grace": "whole_base",
-                   "coaxial_fit": "faces"}
+                   "coaxial_fit": "faces", "landing": "rests"}
 
 
 def _step_in_effect(recorded: dict, bound: str, before: float):
@@ -1536,6 +1561,7 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
                 summary.count(replayed, first_time)
                 summary.messages_checked += len(recorded.derived)
                 if replayed.events:
+                    landed(summary.release_misses, replayed)
                     summary.release_misses += release_misses(scene, replayed, first_time)
                 if summary.recorded_analysis is not None:
                     try:

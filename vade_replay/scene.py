@@ -71,6 +71,7 @@ BLOCK_EVENTS = ("first", "always")
 FLIGHT_GRACES = ("touched", "whole_base")
 PASSING_CONTACTS = ("pass", "block")
 COAXIAL_FITS = ("radial", "faces")
+LANDINGS = ("constraints", "rests")
 RELEASE_VELOCITIES = ("window_fit_stops", "window_fit", "two_frame")
 
 
@@ -138,6 +139,11 @@ class Physics:
     # within the radius are left out, as before 2026-11-23 (a pin with less radial
     # clearance than the contact tolerance was held at its bore's rim).
     coaxial_fit: str = "radial"
+    # constraints: a flying part that comes onto the base where a constraint of its is
+    # recognised (a pin dropped into its bore) goes onto it, or is placed at its final
+    # pose, as a release there would. rests: it lies on the base or flies on, as before
+    # this key (constraints recognised on release only, as in the paper).
+    landing: str = "constraints"
     turn_integrator: str = "yoshida6"        # paper: eq. 11 once per frame
     # Longest sub-steps on the base, read through turn_step_s / slide_step_s. None: the
     # default below, or onbase_max_step_s where a session sets that (for both).
@@ -159,6 +165,7 @@ class Physics:
             ("flight_grace", self.flight_grace, FLIGHT_GRACES),
             ("passing_contact", self.passing_contact, PASSING_CONTACTS),
             ("coaxial_fit", self.coaxial_fit, COAXIAL_FITS),
+            ("landing", self.landing, LANDINGS),
             ("turn_integrator", self.turn_integrator, TURN_INTEGRATORS))
         for name, value, allowed in choices:
             if value not in allowed:

@@ -59,6 +59,10 @@ class _Frame:
     events: list[Event] = field(default_factory=list, init=False)
     modes_changed: bool = field(default=False, init=False)
     taken: list[int] = field(default_factory=list, init=False)  # parts grabbed this frame
+    # Parts that came onto a constraint in flight this frame (``_onto_base``): at rest on
+    # it from the contact to the frame's end, they move on it from the next frame, as a
+    # part let go onto one does.
+    landed: tuple[int, ...] = field(default=(), init=False)
 
     def __init__(self, scene: Scene, collision: CollisionWorld, inputs: TrackerFrame,
                  t_prev_ns: int, parts: list[PartState], *, base_pose: sp.Pose | None = None,
@@ -77,6 +81,7 @@ class _Frame:
         self.events = []
         self.modes_changed = False
         self.taken = []
+        self.landed = ()
 
     @property
     def dt_s(self) -> float:
@@ -601,6 +606,9 @@ def _fly(f: _Frame, index: int) -> None:
                                     f.scene.base.name, t_c))  # type: ignore[union-attr]
         base_at_contact = base.at_time(t_c)  # type: ignore[union-attr]
         base_from_part = base_at_contact.inverse().compose(pose_c)
+        if body.assembly is not None and physics.landing == "constraints" \
+                and _onto_base(f, index, base_from_part, None):
+            return  # came onto a constraint of its own, or its final pose
         normal, on_face = f.collision.base_contact(part.name, base_from_part, grace)
         # Leaving the base, it lands only on a face: the edge of another surface flush
         # with the one it leaves along (a seam) gives directions that would hold it up.
@@ -825,12 +833,23 @@ def _drive(f: _Frame, body: Body, mate: cn.Mate, m: OnBase) -> tuple[bool, bool,
 def _release_on_base(f: _Frame, index: int, hand: str) -> bool:
     """Release onto the base: at the final pose, or onto the first recognised constraint."""
     part = f.parts[index]
+    base_from_part = f.base_pose.inverse().compose(part.pose)  # type: ignore[union-attr]
+    return _onto_base(f, index, base_from_part, hand)
+
+
+def _onto_base(f: _Frame, index: int, base_from_part: sp.Pose, hand: str | None) -> bool:
+    """The part at ``base_from_part`` goes onto the base: at its final pose it is placed,
+    on the first constraint recognised there it goes onto that; else False. Let go by
+    ``hand`` (a release: ``PartReleased`` and the ``released_`` causes), or, with ``hand``
+    None, come there in flight (physics ``landing: constraints``; ``landed_`` causes)."""
+    part = f.parts[index]
     body = f.scene.parts[index]
     assembly: cn.Assembly = body.assembly  # type: ignore[assignment]
-    base_from_part = f.base_pose.inverse().compose(part.pose)  # type: ignore[union-attr]
     v, w = part.linear_velocity, part.angular_velocity
+    placed = Cause.RELEASED_AT_FINAL_POSE if hand is not None else Cause.LANDED_AT_FINAL_POSE
+    onto = Cause.RELEASED_ON_BASE if hand is not None else Cause.LANDED_ON_CONSTRAINT
     if cn.at_final_pose(assembly, base_from_part):
-        _place(f, index, Cause.RELEASED_AT_FINAL_POSE, hand=hand)
+        _place(f, index, placed, hand=hand)
         return True
     for mate_index, mate in enumerate(assembly.mates):
         if mate.kind == "axis" and mate.misfit and f.scene.physics.coaxial_fit == "radial":
@@ -859,7 +878,7 @@ def _release_on_base(f: _Frame, index: int, hand: str) -> bool:
         motion = OnBase(mate_index, snapped, zeros, zeros,
                         cm_offset=cn.cm_offset_base(mate, snapped) if mate.turn else sp.ZERO3)
         if cn.at_final_pose(assembly, snapped):
-            _place(f, index, Cause.RELEASED_AT_FINAL_POSE, hand=hand)
+            _place(f, index, placed, hand=hand)
             return True
         lifted, slides, turns = _drive(f, body, mate, motion)
         if lifted:
@@ -867,10 +886,12 @@ def _release_on_base(f: _Frame, index: int, hand: str) -> bool:
         # The snap is an inelastic contact: the part starts at rest relative to the base.
         mode = ONBASESLIDE if (slides or turns) else ONBASESTATIC
         pose = f.base_pose.compose(snapped)  # type: ignore[union-attr]
-        f.events.append(PartReleased(f.inputs.frame, part.name, Cause.RELEASED_ON_BASE.value,
-                                     hand, v, w))
+        if hand is not None:
+            f.events.append(PartReleased(f.inputs.frame, part.name, onto.value, hand, v, w))
+        else:
+            f.landed = (*f.landed, index)
         f.change_mode(index, PartState(part.name, mode, pose, sp.ZERO3, sp.ZERO3, motion),
-                      Cause.RELEASED_ON_BASE)
+                      onto)
         return True
     return False
 
@@ -999,7 +1020,8 @@ def _carry_with_base(f: _Frame) -> None:
 
 def _move_on_base(f: _Frame) -> None:
     for index in f.awake:
-        if f.parts[index].mode is ONBASESLIDE and f.base_pose is not None:
+        if f.parts[index].mode is ONBASESLIDE and f.base_pose is not None \
+                and index not in f.landed:
             _slide_and_turn(f, index)
 
 
