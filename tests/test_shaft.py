@@ -602,3 +602,30 @@ def test_sleeves_that_fit_their_shaft_are_put_on_and_placed(variant):
                               "pose": {"position": [0, 0, 0.017]}}]}
     causes = [e.cause for r in run_records(doc) for e in r.events if e.kind == "ModeChanged"]
     assert causes == ["grabbed", "released_on_constraint", "reached_final_pose"]
+
+
+def test_a_hollow_pin_too_wide_for_its_bore_is_warned_of_and_lands_on_the_boss():
+    """A review: a tube 5.3 mm wide (bore 3 mm) on a 5 mm bore's constraint was not found
+    not to fit (its only faces within the radius are its own bore's, facing its axis, as a
+    sleeve's are, and a sleeve was checked against a shaft only), was put onto the
+    constraint and fell through the boss as the solid pin once did. In a bore (walls
+    facing the axis) a part is checked against its walls whatever faces it has within
+    the radius: warned of, let go as any part is, landing on the boss's top."""
+    doc = _pin_in_bore(5.3)
+    doc["parts"][0]["shape"] = {"type": "tube", "radius": 5.3, "inner_radius": 3,
+                                "height": 40, "sections": 32}
+    (said,) = _fit_warnings(doc)
+    assert said.startswith("parts[0].assembly.constraints[0]: pin does not fit pin_in_bore: "
+                           "a face of it lies 3 to 5.3 mm from the axis, across the wall of "
+                           "the shaft or bore at 5 mm")
+    from conftest import run_records
+    records = run_records(doc)
+    causes = [e.cause for r in records for e in r.events if e.kind == "ModeChanged"]
+    assert causes == ["grabbed", "released", "landed_on_base"]
+    bottom = records[-1].parts[0].position[2] - 0.95 - 0.02  # the tube's end, base z
+    assert 0.025 <= bottom <= 0.025 + 2e-4  # on the boss's top, within the tolerance
+    fits = _pin_in_bore(4.9)  # a hollow pin that fits goes in and is placed
+    fits["parts"][0]["shape"] = {"type": "tube", "radius": 4.9, "inner_radius": 3,
+                                 "height": 40, "sections": 32}
+    assert _fit_warnings(fits) == []
+    assert run_records(fits)[-1].parts[0].mode == "PLACED"

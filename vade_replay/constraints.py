@@ -438,6 +438,13 @@ def build_mate(*, name: str, kind: str, base_points, base_dirs, part_points, par
                 if float(high.max()) < r - geometry_tol:
                     k = int(np.argmax(high))
                     misfit = (float(low[k]), float(high[k]), r)
+            else:
+                # A bore (its walls facing the axis) and a part whose faces within the
+                # radius are its own bore's: a hollow pin. Wider than the bore (a review:
+                # a tube of 5.3 mm in 5) it does not fit, as a solid pin would not.
+                misfit = radial_misfit(part_vertices, part_faces, part_points[0], u_p,
+                                       base_vertices, base_faces[walls], base_points[0],
+                                       u_b, geometry_tol, extent)
         if radial and pin:
             # A pin (faces within the radius facing out): only the bore's walls are left
             # out; a blind bore's bottom is checked, the radial fits leaving out what never
