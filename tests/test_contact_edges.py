@@ -254,3 +254,43 @@ def test_a_part_thrown_past_the_table_is_said_to_fall_for_ever(tmp_path):
     # The shipped throw is caught: nothing said.
     assert "still falling" not in run_cli("vade-record", str(RECORDINGS / "throw_and_catch.json"),
                                           "-o", str(tmp_path / "t.mcap")).stderr
+
+
+def _block_along_a_wall_to_a_rib(sweep: str | None = None) -> dict:
+    """A slab 6 mm thick let go on the plate 0.05 mm from the wall (within the contact
+    tolerance: in contact with it every frame), the base tilted 45 degrees about y so that
+    it slides along the wall, toward a rib 1 mm thick across its way at x 0.12 (base axes)
+    which it reaches at ~0.9 m/s: 15 mm a frame, more than the slab and the rib together."""
+    doc = _plane_block_wall()
+    doc["parts"][0]["shape"]["size"] = [0.006, 0.05, 0.04]
+    doc["base"]["shape"]["children"].append(
+        {"type": "box", "size": [0.001, 0.03, 0.02], "pose": {"position": [0.12, 0.115, 0.02]}})
+    doc["tracker"]["devices"]["left_hand"] = [
+        {"t": 0, "position": [0.0, 0.2, 0.95], "euler_deg": [0, 0, 0], "grip": True},
+        {"t": 1.4, "euler_deg": [0, 0, 0]}, {"t": 2.0, "euler_deg": [0, 45, 0]}]
+    doc["tracker"]["devices"]["right_hand"][2]["position"] = [0.0, 0.30495, 0.98]
+    doc["tracker"]["duration_s"] = 3.0
+    if sweep is not None:
+        doc["physics"] = {"contact_sweep": sweep}
+    return doc
+
+
+def test_a_block_sliding_along_a_wall_is_stopped_by_a_rib_across_its_way():
+    """A move that starts in contact (the slab touches the wall it slides along) used to be
+    checked at the frame's end alone: a slab moving more than its thickness and the rib's
+    in a frame passed through the rib and slid off the plate. ``contact_sweep: path`` steps
+    it against the base less the wall it touches: blocked at the rib, its face within the
+    contact tolerance of the rib's (x 0.1195), never inside it; ``frame_end`` keeps the
+    old behaviour."""
+    records = run_records(_block_along_a_wall_to_a_rib())
+    assert [c for _, _, c in _transitions(records)][-2:] == ["static_friction_exceeded",
+                                                             "blocked_by_base"]
+    for r in records[60:]:  # let go at frame 60
+        base = sp.Pose(r.base.position, r.base.rotation_xyzw)
+        rel = base.inverse().compose(sp.Pose(r.parts[0].position, r.parts[0].rotation_xyzw))
+        assert rel.position[0] + 0.003 <= 0.1195  # never into the rib
+        assert 0.12995 - 1e-12 <= rel.position[1] + 0.025 <= 0.13  # along the wall
+    gap = 0.1195 - (rel.position[0] + 0.003)
+    assert 0.0 <= gap <= 1e-4
+    before = run_records(_block_along_a_wall_to_a_rib("frame_end"))
+    assert "slid_off_base" in [c for _, _, c in _transitions(before)]

@@ -442,7 +442,11 @@ class CollisionWorld:
             return surface.obj
         key = (mate[0], mate[1], index)
         if key not in self._rest_surfaces:
-            faces = np.intersect1d(surface.faces, self._mates[mate].base_rest_faces)
+            # (By face index: ``_MateGeometry.base_rest_faces`` holds the faces' corners, and
+            # intersecting with those kept faces whose index is some corner's: a review.)
+            assembly = self._bodies[mate[0]].assembly
+            kept = assembly.mates[mate[1]].base_rest_faces  # type: ignore[union-attr]
+            faces = np.intersect1d(surface.faces, kept)
             model = _bvh_of(self._base_vertices, self._base_faces[faces])
             self._rest_surfaces[key] = None if model is None \
                 else fcl.CollisionObject(model, fcl.Transform())
@@ -463,6 +467,19 @@ class CollisionWorld:
                 if _distance(obj, other) <= within:
                     near.append(index)
         return tuple(sorted(near))
+
+    def rest_distance_without(self, part: str, mate: int, base_from_part: sp.Pose,
+                              without: tuple[int, ...], *,
+                              lift: sp.Vec3 = sp.ZERO3) -> float | None:
+        """``base_distance`` under the constraint's SKIP mode without the surfaces
+        ``without`` lists (``rest_surfaces_within``: what a part touches as a move starts in
+        contact, which it may move along). None where the constraint has radial fits
+        (``_MateGeometry.fit_pairs``), which whole surfaces do not see: a pin passing its
+        rim would be met by it."""
+        if self._mates[(part, mate)].fit_pairs is not None:
+            return None
+        pose = sp.Pose(sp.add(base_from_part.position, lift), base_from_part.rotation)
+        return self._graced_nearest(part, pose, without, False, (part, mate))[0]
 
     def rest_distance(self, part: str, mate: int, base_from_part: sp.Pose,
                       only: tuple[int, ...], *, lift: sp.Vec3 = sp.ZERO3) -> float:

@@ -1394,7 +1394,8 @@ _DERIVED = {"slide_step_s": ("slide_integrator", "slide_max_step_s", "onbase_max
 _BEFORE_THE_KEY = {"slide_onset": "sub_step", "slide_off": "frame_end",
                    "final_pose_check": "frame_end", "block_cut": "both",
                    "block_event": "always", "flight_grace": "whole_base",
-                   "coaxial_fit": "faces", "landing": "rests"}
+                   "coaxial_fit": "faces", "landing": "rests",
+                   "contact_sweep": "frame_end"}
 
 
 def _step_in_effect(recorded: dict, bound: str, before: float):

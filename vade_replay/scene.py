@@ -72,6 +72,7 @@ FLIGHT_GRACES = ("touched", "whole_base")
 PASSING_CONTACTS = ("pass", "block")
 COAXIAL_FITS = ("radial", "faces")
 LANDINGS = ("constraints", "rests")
+CONTACT_SWEEPS = ("path", "frame_end")
 RELEASE_VELOCITIES = ("window_fit_stops", "window_fit", "two_frame")
 
 
@@ -144,6 +145,12 @@ class Physics:
     # pose, as a release there would. rests: it lies on the base or flies on, as before
     # this key (constraints recognised on release only, as in the paper).
     landing: str = "constraints"
+    # path: a move on the base that starts in contact with it (within the tolerance, as a
+    # block sliding along a wall does) is stepped along its path against the rest of the
+    # base, so it cannot pass through what lies across its way; frame_end: checked at the
+    # frame's end alone, as before this key (it passed a rib thinner than a frame's travel).
+    # Not where the constraint has radial fits (``coaxial_fit`` radial on an axis).
+    contact_sweep: str = "path"
     turn_integrator: str = "yoshida6"        # paper: eq. 11 once per frame
     # Longest sub-steps on the base, read through turn_step_s / slide_step_s. None: the
     # default below, or onbase_max_step_s where a session sets that (for both).
@@ -166,6 +173,7 @@ class Physics:
             ("passing_contact", self.passing_contact, PASSING_CONTACTS),
             ("coaxial_fit", self.coaxial_fit, COAXIAL_FITS),
             ("landing", self.landing, LANDINGS),
+            ("contact_sweep", self.contact_sweep, CONTACT_SWEEPS),
             ("turn_integrator", self.turn_integrator, TURN_INTEGRATORS))
         for name, value, allowed in choices:
             if value not in allowed:

@@ -1326,6 +1326,40 @@ def _back_off(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, lam: float, deep_
     return lo
 
 
+def _sweep_from_contact(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, at, speed: float,
+                        lift: sp.Vec3) -> float | None:
+    """A move that starts within the tolerance of the base (``_sweep``), stepped by
+    conservative advancement against the base less the surfaces it touches at the start
+    (``collision.rest_surfaces_within``: whole faces, which it may move along, as the end's
+    check lets it): the first point of the frame's path within the tolerance of anything
+    else, or None (nothing met; or a constraint with radial fits, which whole surfaces do
+    not see, where the end's check alone decides as before)."""
+    tol = f.scene.physics.contact_tolerance
+
+    def posed(lam: float) -> sp.Pose:
+        x, a = at(lam)
+        return cn.relative_pose(mate, m.base_from_snap, x, a)
+    touched = f.collision.rest_surfaces_within(body.name, m.mate, posed(0.0), tol, lift=lift)
+    d = f.collision.rest_distance_without(body.name, m.mate, posed(0.0), touched, lift=lift)
+    if d is None:
+        return None
+    lam = 0.0
+    for _ in range(_CA_BASE_ITERATIONS):
+        if d <= tol:
+            return lam
+        step_len = (d - 0.5 * tol) / speed
+        if lam + step_len >= 1.0:
+            d = f.collision.rest_distance_without(body.name, m.mate, posed(1.0), touched,
+                                                  lift=lift)
+            return 1.0 if d is not None and d <= tol else None
+        lam += step_len
+        d = f.collision.rest_distance_without(body.name, m.mate, posed(lam), touched,
+                                              lift=lift)
+        if d is None:
+            return None
+    return None  # out of steps (skimming something): the end's check decides
+
+
 def _sweep(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, x1: tuple[float, ...], a1: float):
     """SKIP_COPLANAR / SKIP_COAXIAL along the frame's path in coordinates, by conservative
     advancement: at distance d, no point of the part moves more than ``|dx| + rho |da|``
@@ -1389,6 +1423,13 @@ def _sweep(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, x1: tuple[float, ...
                 if passed:
                     hit, depth = past, _PASS_DEPTH * tol
                     d = distance(*at(1.0 if hit is None else hit))
+            elif hit is None and f.scene.physics.contact_sweep == "path":
+                # Along what it touches, into nothing else on the way (checked at the end
+                # alone, a block sliding along a wall passed through a rib across its path).
+                met = _sweep_from_contact(f, body, mate, m, at, speed, lift)
+                if met is not None:
+                    hit = met
+                    d = distance(*at(met))
     else:
         for _ in range(_CA_BASE_ITERATIONS):
             step_len = (d - 0.5 * tol) / speed
