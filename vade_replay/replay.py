@@ -712,6 +712,7 @@ def record(session: Session, out: str | Path, *,
                          units=session.doc.get("units", "m"),
                          masses_kg={p.name: p.mass_kg for p in scene.parts})
     first_time = None
+    open_misses: dict[str, int] = {}  # part -> its miss still in flight (``landed``)
     frame = None
     watch = TrackerWatch(session)
     writer = RecordingWriter(partial, session, scene)
@@ -725,8 +726,9 @@ def record(session: Session, out: str | Path, *,
             writer.write_frame(record_)
             summary.count(record_, first_time)
             if record_.events:
-                landed(summary.release_misses, record_)
+                landed(summary.release_misses, open_misses, record_)
                 summary.release_misses += release_misses(scene, record_, first_time)
+                _opened(summary.release_misses, open_misses, record_)
             if on_frame:
                 on_frame(record_)
     except VadeError as exc:
@@ -850,16 +852,28 @@ def release_misses(scene: Scene, record: FrameRecord, first_time_ns: int) -> lis
 _LANDINGS = frozenset({Cause.LANDED_ON_CONSTRAINT.value, Cause.LANDED_AT_FINAL_POSE.value})
 
 
-def landed(misses: list[dict], record: FrameRecord) -> None:
+def landed(misses: list[dict], open_misses: dict[str, int], record: FrameRecord) -> None:
     """A part let go off its constraints that then came onto one in flight (physics
-    ``landing: constraints``: a pin dropped above its bore): its last miss says so, with
-    the frame and the cause (``landed``), so the miss does not read as the end of it."""
+    ``landing: constraints``: a pin dropped above its bore): its miss says so, with the
+    frame and the cause (``landed``), so the miss does not read as the end of it. Only
+    the flight that followed the miss's release (``open_misses``, part -> the miss's
+    index: closed by the part's next change of mode, whatever it is; a review found an
+    old miss credited with a later release's landing)."""
     for event in record.events:
-        if event.kind == "ModeChanged" and event.cause in _LANDINGS:
-            miss = next((m for m in reversed(misses) if m["part"] == event.part), None)
-            if miss is not None and miss["landed"] is None:
-                miss["landed"] = {"frame": record.frame, "cause": event.cause,
-                                  "mode": event.to_mode}
+        if event.kind == "ModeChanged":
+            k = open_misses.pop(event.part, None)
+            if k is not None and event.cause in _LANDINGS:
+                misses[k]["landed"] = {"frame": record.frame, "cause": event.cause,
+                                       "mode": event.to_mode}
+
+
+def _opened(misses: list[dict], open_misses: dict[str, int], record: FrameRecord) -> None:
+    """The misses of ``record`` (the last ones of ``misses``) are open until their part's
+    next change of mode (``landed``)."""
+    for k in range(len(misses) - 1, -1, -1):
+        if misses[k]["frame"] != record.frame:
+            break
+        open_misses[misses[k]["part"]] = k
 
 
 # A part resting at the start this far from anything under it is said to float (m).
@@ -1532,6 +1546,7 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
                                  extra_metadata={"replayed_from": str(recording.path)},
                                  parts_encoding=recording.parts_encoding)
     first_time = None
+    open_misses: dict[str, int] = {}  # part -> its miss still in flight (``landed``)
     advance = Stepper(scene, collision)
     encoder = codec.FrameEncoder(recording.parts_encoding)
     previous: FrameRecord | None = None
@@ -1562,8 +1577,9 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
                 summary.count(replayed, first_time)
                 summary.messages_checked += len(recorded.derived)
                 if replayed.events:
-                    landed(summary.release_misses, replayed)
+                    landed(summary.release_misses, open_misses, replayed)
                     summary.release_misses += release_misses(scene, replayed, first_time)
+                    _opened(summary.release_misses, open_misses, replayed)
                 if summary.recorded_analysis is not None:
                     try:
                         decoded = recorded_record(recorded, decoded)
