@@ -256,15 +256,29 @@ def test_a_part_thrown_past_the_table_is_said_to_fall_for_ever(tmp_path):
                                           "-o", str(tmp_path / "t.mcap")).stderr
 
 
-def _block_along_a_wall_to_a_rib(sweep: str | None = None) -> dict:
+def _block_along_a_wall_to_a_rib(sweep: str | None = None, obstacle: str | None = "rib",
+                                 split: bool = False) -> dict:
     """A slab 6 mm thick let go on the plate 0.05 mm from the wall (within the contact
     tolerance: in contact with it every frame), the base tilted 45 degrees about y so that
     it slides along the wall, toward a rib 1 mm thick across its way at x 0.12 (base axes)
-    which it reaches at ~0.9 m/s: 15 mm a frame, more than the slab and the rib together."""
+    which it reaches at ~0.9 m/s: 15 mm a frame, more than the slab and the rib together.
+    ``obstacle`` "stop": a stop 10 mm thick there instead (its face at x 0.1195 too); None:
+    nothing, the slab slides off the plate's end. ``split``: the wall is two boxes, flush,
+    their seam at x 0.05."""
     doc = _plane_block_wall()
     doc["parts"][0]["shape"]["size"] = [0.006, 0.05, 0.04]
-    doc["base"]["shape"]["children"].append(
-        {"type": "box", "size": [0.001, 0.03, 0.02], "pose": {"position": [0.12, 0.115, 0.02]}})
+    children = doc["base"]["shape"]["children"]
+    if obstacle == "rib":
+        children.append({"type": "box", "size": [0.001, 0.03, 0.02],
+                         "pose": {"position": [0.12, 0.115, 0.02]}})
+    elif obstacle == "stop":
+        children.append({"type": "box", "size": [0.01, 0.03, 0.02],
+                         "pose": {"position": [0.1245, 0.115, 0.02]}})
+    if split:
+        children[1] = {"type": "box", "size": [0.2, 0.02, 0.06],
+                       "pose": {"position": [-0.05, 0.14, 0.04]}}
+        children.append({"type": "box", "size": [0.1, 0.02, 0.06],
+                         "pose": {"position": [0.1, 0.14, 0.04]}})
     doc["tracker"]["devices"]["left_hand"] = [
         {"t": 0, "position": [0.0, 0.2, 0.95], "euler_deg": [0, 0, 0], "grip": True},
         {"t": 1.4, "euler_deg": [0, 0, 0]}, {"t": 2.0, "euler_deg": [0, 45, 0]}]
@@ -275,22 +289,41 @@ def _block_along_a_wall_to_a_rib(sweep: str | None = None) -> dict:
     return doc
 
 
-def test_a_block_sliding_along_a_wall_is_stopped_by_a_rib_across_its_way():
+@pytest.mark.parametrize("obstacle", ["rib", "stop"])
+def test_a_block_sliding_along_a_wall_is_stopped_by_a_rib_across_its_way(obstacle):
     """A move that starts in contact (the slab touches the wall it slides along) used to be
     checked at the frame's end alone: a slab moving more than its thickness and the rib's
-    in a frame passed through the rib and slid off the plate. ``contact_sweep: path`` steps
-    it against the base less the wall it touches: blocked at the rib, its face within the
-    contact tolerance of the rib's (x 0.1195), never inside it; ``frame_end`` keeps the
-    old behaviour."""
-    records = run_records(_block_along_a_wall_to_a_rib())
+    in a frame passed through the rib and slid off the plate, and one whose frame ended
+    inside a thick stop was stopped where the frame began, 8.3 mm short. ``contact_sweep:
+    path`` steps it against the base less the wall it touches: blocked at the obstacle, its
+    face within the contact tolerance of the obstacle's (x 0.1195), never inside it;
+    ``frame_end`` keeps the old behaviour."""
+    records = run_records(_block_along_a_wall_to_a_rib(obstacle=obstacle))
     assert [c for _, _, c in _transitions(records)][-2:] == ["static_friction_exceeded",
                                                              "blocked_by_base"]
     for r in records[60:]:  # let go at frame 60
         base = sp.Pose(r.base.position, r.base.rotation_xyzw)
         rel = base.inverse().compose(sp.Pose(r.parts[0].position, r.parts[0].rotation_xyzw))
-        assert rel.position[0] + 0.003 <= 0.1195  # never into the rib
+        assert rel.position[0] + 0.003 <= 0.1195  # never into the obstacle
         assert 0.12995 - 1e-12 <= rel.position[1] + 0.025 <= 0.13  # along the wall
     gap = 0.1195 - (rel.position[0] + 0.003)
     assert 0.0 <= gap <= 1e-4
-    before = run_records(_block_along_a_wall_to_a_rib("frame_end"))
-    assert "slid_off_base" in [c for _, _, c in _transitions(before)]
+    before = _transitions(run_records(_block_along_a_wall_to_a_rib("frame_end", obstacle)))
+    if obstacle == "rib":
+        assert "slid_off_base" in [c for _, _, c in before]
+    else:
+        assert before == _transitions(records)  # blocked too, but a frame short (8.3 mm)
+
+
+@pytest.mark.parametrize("split", [False, True])
+def test_a_block_sliding_along_a_wall_slides_off_its_end(split):
+    """A review of ``contact_sweep: path``: a surface met along the way at the distance the
+    slab keeps from the wall (the wall's end face as the slab passes it, the second box of
+    a wall built of two, flush) was taken for an obstacle, and the slab was blocked there
+    for good. Met but not moved into (a tolerance of travel further is no nearer than half
+    the tolerance), it is moved along: the slab slides off the plate's end as under
+    ``frame_end``, with the same frames."""
+    ours = run_records(_block_along_a_wall_to_a_rib(obstacle=None, split=split))
+    assert "slid_off_base" in [c for _, _, c in _transitions(ours)]
+    theirs = run_records(_block_along_a_wall_to_a_rib("frame_end", None, split))
+    assert [r.parts for r in ours] == [r.parts for r in theirs]

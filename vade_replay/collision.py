@@ -468,18 +468,23 @@ class CollisionWorld:
                     near.append(index)
         return tuple(sorted(near))
 
-    def rest_distance_without(self, part: str, mate: int, base_from_part: sp.Pose,
-                              without: tuple[int, ...], *,
-                              lift: sp.Vec3 = sp.ZERO3) -> float | None:
+    def sweeps_by_surface(self, part: str, mate: int) -> bool:
+        """Whether the constraint's SKIP checks can be asked surface by surface
+        (``rest_nearest_without``): not where it has radial fits
+        (``_MateGeometry.fit_pairs``), which whole surfaces do not see (a pin passing its
+        rim would meet it)."""
+        return self._mates[(part, mate)].fit_pairs is None
+
+    def rest_nearest_without(self, part: str, mate: int, base_from_part: sp.Pose,
+                             without: tuple[int, ...], *,
+                             lift: sp.Vec3 = sp.ZERO3) -> tuple[float, int]:
         """``base_distance`` under the constraint's SKIP mode without the surfaces
-        ``without`` lists (``rest_surfaces_within``: what a part touches as a move starts in
-        contact, which it may move along). None where the constraint has radial fits
-        (``_MateGeometry.fit_pairs``), which whole surfaces do not see: a pin passing its
-        rim would be met by it."""
-        if self._mates[(part, mate)].fit_pairs is not None:
-            return None
+        ``without`` lists (what a part touches as a move starts in contact, which it may
+        move along), and the nearest surface (-1 where none is left); only where
+        ``sweeps_by_surface``."""
         pose = sp.Pose(sp.add(base_from_part.position, lift), base_from_part.rotation)
-        return self._graced_nearest(part, pose, without, False, (part, mate))[0]
+        best, _, which = self._graced_nearest(part, pose, without, False, (part, mate))
+        return best, which
 
     def rest_distance(self, part: str, mate: int, base_from_part: sp.Pose,
                       only: tuple[int, ...], *, lift: sp.Vec3 = sp.ZERO3) -> float:

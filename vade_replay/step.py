@@ -1354,34 +1354,39 @@ def _back_off(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, lam: float, deep_
 def _sweep_from_contact(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, at, speed: float,
                         lift: sp.Vec3) -> float | None:
     """A move that starts within the tolerance of the base (``_sweep``), stepped by
-    conservative advancement against the base less the surfaces it touches at the start
-    (``collision.rest_surfaces_within``: whole faces, which it may move along, as the end's
-    check lets it): the first point of the frame's path within the tolerance of anything
-    else, or None (nothing met; or a constraint with radial fits, which whole surfaces do
-    not see, where the end's check alone decides as before)."""
-    tol = f.scene.physics.contact_tolerance
+    conservative advancement against the base less the surfaces it touches (whole faces,
+    ``collision.rest_surfaces_within``), which it may move along as the end's check lets
+    it: the first point of the frame's path where it meets something else, or None.
 
-    def posed(lam: float) -> sp.Pose:
-        x, a = at(lam)
+    A surface met within the tolerance is moved into, and blocks there, if a tolerance of
+    travel further along the path (extrapolated past the frame's end) would bring the part
+    nearer it than half the tolerance; else the part is moving along it (the edge of the
+    wall it slides along as it passes the wall's end, the next box of a wall built of two;
+    a review found those blocking for good) and it joins what the part touches. None too on
+    a constraint with radial fits (``collision.sweeps_by_surface``), where the end's check
+    alone decides, as before."""
+    if not f.collision.sweeps_by_surface(body.name, m.mate):
+        return None
+    tol = f.scene.physics.contact_tolerance
+    deep = 0.5 * tol - _CONTACT_SLACK_M
+
+    def posed(lam_: float) -> sp.Pose:
+        x, a = at(lam_)
         return cn.relative_pose(mate, m.base_from_snap, x, a)
     touched = f.collision.rest_surfaces_within(body.name, m.mate, posed(0.0), tol, lift=lift)
-    d = f.collision.rest_distance_without(body.name, m.mate, posed(0.0), touched, lift=lift)
-    if d is None:
-        return None
     lam = 0.0
     for _ in range(_CA_BASE_ITERATIONS):
-        if d <= tol:
-            return lam
-        step_len = (d - 0.5 * tol) / speed
-        if lam + step_len >= 1.0:
-            d = f.collision.rest_distance_without(body.name, m.mate, posed(1.0), touched,
-                                                  lift=lift)
-            return 1.0 if d is not None and d <= tol else None
-        lam += step_len
-        d = f.collision.rest_distance_without(body.name, m.mate, posed(lam), touched,
-                                              lift=lift)
-        if d is None:
+        d, which = f.collision.rest_nearest_without(body.name, m.mate, posed(lam), touched,
+                                                    lift=lift)
+        if d <= tol and which >= 0:
+            ahead = posed(lam + tol / speed)
+            if f.collision.rest_distance(body.name, m.mate, ahead, (which,), lift=lift) < deep:
+                return lam  # into it
+            touched = (*touched, which)  # along it: it touches that one too from here
+            continue
+        if lam >= 1.0:
             return None
+        lam = min(1.0, lam + (d - 0.5 * tol) / speed)
     return None  # out of steps (skimming something): the end's check decides
 
 
@@ -1448,13 +1453,17 @@ def _sweep(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, x1: tuple[float, ...
                 if passed:
                     hit, depth = past, _PASS_DEPTH * tol
                     d = distance(*at(1.0 if hit is None else hit))
-            elif hit is None and f.scene.physics.contact_sweep == "path":
-                # Along what it touches, into nothing else on the way (checked at the end
-                # alone, a block sliding along a wall passed through a rib across its path).
+            elif f.scene.physics.contact_sweep == "path":
+                # Along what it touches, into nothing else on the way: checked at the end
+                # alone, a block sliding along a wall passed through a rib across its way,
+                # and one whose frame ended inside a stop was stopped a frame short.
                 met = _sweep_from_contact(f, body, mate, m, at, speed, lift)
                 if met is not None:
-                    hit = met
-                    d = distance(*at(met))
+                    d_met = distance(*at(met))
+                    if d_met >= 0.5 * tol - _CONTACT_SLACK_M:
+                        hit, d = met, d_met
+                    # (Else it went deeper into what it touched before that: stopped at
+                    # the frame's start, as the end's check has it.)
     else:
         for _ in range(_CA_BASE_ITERATIONS):
             step_len = (d - 0.5 * tol) / speed
