@@ -73,6 +73,7 @@ PASSING_CONTACTS = ("pass", "block")
 COAXIAL_FITS = ("radial", "faces")
 LANDINGS = ("constraints", "rests")
 CONTACT_SWEEPS = ("path", "frame_end")
+VELOCITIES = ("world", "relative")
 RELEASE_VELOCITIES = ("window_fit_stops", "window_fit", "two_frame")
 
 
@@ -151,6 +152,11 @@ class Physics:
     # frame's end alone, as before this key (it passed a rib thinner than a frame's travel).
     # Not where the constraint has radial fits (``coaxial_fit`` radial on an axis).
     contact_sweep: str = "path"
+    # world: the recorded velocities of the base and of parts on it (sliding, resting,
+    # placed) are world velocities, the base's motion over the frame included, as the
+    # schema says; relative: relative to the base (in world axes; zero for the base and
+    # for parts at rest on it or placed), as before this key.
+    velocities: str = "world"
     turn_integrator: str = "yoshida6"        # paper: eq. 11 once per frame
     # Longest sub-steps on the base, read through turn_step_s / slide_step_s. None: the
     # default below, or onbase_max_step_s where a session sets that (for both).
@@ -174,6 +180,7 @@ class Physics:
             ("coaxial_fit", self.coaxial_fit, COAXIAL_FITS),
             ("landing", self.landing, LANDINGS),
             ("contact_sweep", self.contact_sweep, CONTACT_SWEEPS),
+            ("velocities", self.velocities, VELOCITIES),
             ("turn_integrator", self.turn_integrator, TURN_INTEGRATORS))
         for name, value, allowed in choices:
             if value not in allowed:

@@ -936,9 +936,15 @@ def _base_motion(f: _Frame, point_base: sp.Vec3) -> tuple[sp.Vec3, sp.Vec3]:
     dt = f.dt_s
     if f.base_prev is None or dt <= 0.0:
         return sp.ZERO3, sp.ZERO3
-    v = sp.scale(sp.sub(f.base_pose.apply(point_base), f.base_prev.apply(point_base)),  # type: ignore[union-attr]
-                 1.0 / dt)
-    rel = sp.quat_mul(f.base_pose.rotation, sp.quat_conj(f.base_prev.rotation))  # type: ignore[union-attr]
+    return base_velocity(f.base_prev, f.base_pose, dt, point_base)  # type: ignore[arg-type]
+
+
+def base_velocity(before: sp.Pose, after: sp.Pose, dt: float,
+                  point_base: sp.Vec3) -> tuple[sp.Vec3, sp.Vec3]:
+    """World velocity of the base-fixed point ``point_base`` and the base's angular
+    velocity, over ``dt`` seconds from pose ``before`` to ``after``."""
+    v = sp.scale(sp.sub(after.apply(point_base), before.apply(point_base)), 1.0 / dt)
+    rel = sp.quat_mul(after.rotation, sp.quat_conj(before.rotation))
     return v, sp.scale(sp.quat_to_rotvec(rel), 1.0 / dt)
 
 
@@ -1803,26 +1809,52 @@ def frame_record(scene: Scene, state: WorldState, inputs: TrackerFrame,
     text). Only the parts awake before or after the step can have changed.
     """
     base = None
+    # The base's motion over the frame, for world velocities (physics ``velocities``): None
+    # where it did not move, or for ``relative``.
+    moving: tuple[sp.Pose, sp.Pose, float] | None = None
     if scene.base is not None and state.base_pose is not None:
         if previous is not None and previous[0].base_pose is state.base_pose \
                 and previous[1].base is not None:
             base = previous[1].base  # a base that did not move (fixed, or no left hand)
         else:
+            v, w = sp.ZERO3, sp.ZERO3
+            before = previous[0].base_pose if previous is not None else None
+            dt = (state.time_ns - previous[0].time_ns) * 1e-9 if previous is not None else 0.0
+            if before is not None and dt > 0.0 and scene.physics.velocities == "world":
+                moving = (before, state.base_pose, dt)
+                v, w = base_velocity(before, state.base_pose, dt, scene.base.center_of_mass)
             base = PartSnapshot(scene.base.name,
                                 _STATIC_TEXT if scene.base_fixed else _INHAND_TEXT,
-                                state.base_pose.position, state.base_pose.rotation,
-                                sp.ZERO3, sp.ZERO3)
+                                state.base_pose.position, state.base_pose.rotation, v, w)
     prev_awake = previous[0].awake_parts() if previous is not None else None
     awake = state.awake_parts()
     if previous is None or prev_awake is None or awake is None:
-        return FrameRecord(inputs, base, tuple(snapshot(p) for p in state.parts), events)
+        return FrameRecord(inputs, base, tuple(_snapshot_in(scene, i, p, moving)
+                                               for i, p in enumerate(state.parts)), events)
     prev_state, prev_record = previous
     snaps = list(prev_record.parts)
     parts, prev_parts = state.parts, prev_state.parts
     for index in set(prev_awake).union(awake):
         if parts[index] is not prev_parts[index]:
-            snaps[index] = snapshot(parts[index])
+            snaps[index] = _snapshot_in(scene, index, parts[index], moving)
     return FrameRecord(inputs, base, tuple(snaps), events)
+
+
+def _snapshot_in(scene: Scene, index: int, part: PartState,
+                 moving: tuple[sp.Pose, sp.Pose, float] | None) -> PartSnapshot:
+    """``snapshot(part)``, with world velocities for a part on the base (``moving``: the
+    base's poses over the frame and its length): the base's own motion at the part's
+    centre of mass added to its motion relative to the base (zero at rest on it, or
+    placed), as the schema's "world velocity" says; before ``velocities: world`` those
+    were recorded as relative velocities, in world axes."""
+    mode = part.mode
+    if moving is None or not (mode is ONBASESLIDE or mode is ONBASESTATIC or mode is PLACED):
+        return snapshot(part)
+    before, after, dt = moving
+    cm = after.inverse().apply(part.pose.apply(scene.parts[index].center_of_mass))
+    v, w = base_velocity(before, after, dt, cm)
+    return PartSnapshot(part.name, mode._value_, part.pose.position, part.pose.rotation,
+                        sp.add(part.linear_velocity, v), sp.add(part.angular_velocity, w))
 
 
 _REUSE_SNAPSHOTS = True  # frame_record's reuse of unchanged snapshots (off in a test)
