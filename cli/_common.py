@@ -114,18 +114,26 @@ def closed_pipe(stream) -> bool:
         return False
 
 
+# What a command that stops when standard output closes leaves undone, for the line that
+# says so (``_pipe_closed``): set by a command that writes files as it prints (vade-goldens).
+# A run with files to write at its end goes on without standard output instead.
+UNDONE = ""
+
+
 def _pipe_closed() -> int:
     """Standard output was closed early (``| head``): stop, as a shell's tools do, with the
-    exit code of a process that SIGPIPE ended (128 + 13). One line on stderr says what was
-    left unwritten (tables, -o and --rerun are written when a run ends)."""
+    exit code of a process that SIGPIPE ended (128 + 13). One line on stderr says so, and
+    what was left undone where a command has said (``UNDONE``). (It said "outputs of the run
+    not yet written (tables, -o, --rerun) were not written" of a run that had asked for
+    none: a researcher's trial.)"""
     for stream in (sys.stdout, sys.stderr):
         if closed_pipe(stream):
             try:
                 _to_devnull(stream)
             except (OSError, ValueError):
                 pass
-    print("stopped: standard output was closed by its reader; outputs of the run not yet "
-          "written (tables, -o, --rerun) were not written", file=sys.stderr)
+    print("stopped: standard output was closed by its reader"
+          + (f"; {UNDONE}" if UNDONE else ""), file=sys.stderr)
     return EXIT_PIPE_CLOSED
 
 

@@ -18,6 +18,7 @@ from vade_replay.errors import ConfigError, VadeError
 from vade_replay.recording import Recording
 from vade_replay.replay import _first_difference, record, replay
 
+from . import _common
 from ._common import EXIT_DIVERGED, EXIT_OK, EXIT_UNUSABLE, run
 
 try:
@@ -126,6 +127,7 @@ def _lock(folder: Path):
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    _common.UNDONE = "the goldens after the last one named were not checked"
     folder = Path(args.dir)
     if not folder.is_dir():
         raise ConfigError("no such folder", file=str(folder), field="--dir")
@@ -142,7 +144,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.names:
         sessions = [s for s in sessions if s.stem in args.names]
     if not args.check:
-        return _regenerate(folder, sessions)
+        # Files to write: all or none, so a reader of its lines going away (``| head``) does
+        # not stop it half way (``run`` still exits 141).
+        with _common.going_on_without_stdout():
+            return _regenerate(folder, sessions)
     counts = {"match": 0, "diverged": 0, "stale": 0, "unusable": 0}
     for path in sessions:
         golden = path.with_suffix(".mcap")

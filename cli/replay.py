@@ -536,7 +536,11 @@ def _verdict(summary, overrides: dict[str, str], *, short: bool = False,
             text += "; " + (f"events from frame {event_change['frame']}" if event_change
                             else "the same events")
             if changes is not None:
-                text += "; analysis " + ("changed" if changes else "unchanged")
+                # The first changes, as a lone recording's "analysis:" line gives them all
+                # (a researcher's trial: "analysis changed" told a study nothing).
+                text += "; analysis " + (("changed: " + "; ".join(changes[:3]) + (
+                    f"; {len(changes) - 3} more (--json: analysis_changes)"
+                    if len(changes) > 3 else "")) if changes else "unchanged")
         if summary.physics_changed and not summary.match and not short:
             text += "\n" + _physics_note(summary.physics_changed, path, what_if=True)
         changes = getattr(summary, "analysis_changes", None)

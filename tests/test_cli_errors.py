@@ -838,3 +838,43 @@ def test_a_recording_given_twice_is_replayed_once():
     assert "is " + str(golden) + " again: replayed once" in result.stderr
     assert result.stdout.splitlines() == [
         "match: 151 frames (2.50 s), 308 derived messages identical to the recording"]
+
+
+def test_a_run_stopped_by_a_closed_standard_output_names_only_what_it_left_undone(
+        monkeypatch, capsys):
+    """A researcher's trial: ``vade-replay FILE | head`` ended with "outputs of the run not
+    yet written (tables, -o, --rerun) were not written" though none was asked for (a run
+    with files to write goes on without standard output). The line says only that it
+    stopped, and what a command that writes as it prints left undone (``vade-goldens
+    --check``: the goldens after the last one named)."""
+    import sys
+
+    from cli import _common
+
+    def closing(argv):
+        raise BrokenPipeError
+    monkeypatch.setattr(_common, "closed_pipe", lambda stream: stream is sys.stdout)
+    monkeypatch.setattr(_common, "_to_devnull", lambda stream: None)
+    monkeypatch.setattr(_common, "UNDONE", "")
+    assert _common.run(closing) == 141
+    assert capsys.readouterr().err == "stopped: standard output was closed by its reader\n"
+    monkeypatch.setattr(_common, "UNDONE", "the goldens after the last one named were not "
+                                           "checked")
+    assert _common.run(closing) == 141
+    assert capsys.readouterr().err.endswith("reader; the goldens after the last one named "
+                                            "were not checked\n")
+
+
+def test_a_study_what_if_line_says_what_changed_in_the_analysis():
+    """A researcher's trial: over several recordings a what-if's line ended "analysis
+    changed", which told a study nothing; a lone recording's "analysis:" line lists the
+    changes. Each recording's line now ends with them (up to three)."""
+    files = [str(RECORDINGS / "drop_on_table.mcap"), str(RECORDINGS / "gear_pendulum.mcap")]
+    result = run_cli("vade-replay", *files, "--set", "physics.gravity_scale_free=1.0")
+    assert result.returncode == 0
+    line = next(x for x in result.stdout.splitlines() if x.startswith(files[0]))
+    alone = run_cli("vade-replay", files[0], "--set", "physics.gravity_scale_free=1.0")
+    (changes,) = [x for x in alone.stdout.splitlines() if x.startswith("analysis: ")]
+    assert line.endswith("; analysis changed: " + changes[len("analysis: "):])
+    other = next(x for x in result.stdout.splitlines() if x.startswith(files[1]))
+    assert "the recording is unchanged" in other and "analysis" not in other

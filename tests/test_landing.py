@@ -192,3 +192,22 @@ def test_a_miss_is_not_credited_with_a_later_releases_landing(tmp_path):
     (miss,) = summary.release_misses
     assert miss["frame"] == 60 and miss["landed"] is None
     assert "then landed" not in describe_miss(miss)
+
+
+def test_the_study_table_counts_misses_that_then_landed_apart(tmp_path):
+    """The study table's ``release_misses`` counts a pin let go 30 mm above its bore, which
+    then dropped in and was placed, as a miss (its release went onto no constraint); a
+    researcher's trial counting failed placements needs those apart: the
+    ``release_misses_landed`` column."""
+    import csv
+    import json
+
+    from conftest import run_cli
+    session = tmp_path / "drop.json"
+    session.write_text(json.dumps(_dropped(4.99, 30)))
+    assert run_cli("vade-record", str(session), "-o", str(tmp_path / "drop.mcap")).returncode == 0
+    result = run_cli("vade-replay", str(tmp_path / "drop.mcap"), "--csv", str(tmp_path / "t.csv"))
+    assert result.returncode == 0
+    (row,) = csv.DictReader((tmp_path / "t.csv").open())
+    assert row["part"] == "pin" and row["placed_at_s"] != ""
+    assert row["release_misses"] == "1" and row["release_misses_landed"] == "1"

@@ -147,7 +147,8 @@ ANALYSIS_COLUMNS = ("recording", "session", "match", "first_divergence_frame", "
                     "duration_s", "part", *PART_COUNTS, "placed_at_s",
                     *(f"s_{mode.value}" for mode in Mode), "session_refused_grabs", "error",
                     "overrides", "truncated", "release_misses", "units", "mass_kg",
-                    "as_recorded", "first_event_change_frame", "not_applied")
+                    "as_recorded", "first_event_change_frame", "not_applied",
+                    "release_misses_landed")
 
 
 # The run frame by frame as tables (``vade-replay --events``, ``--poses``), for a study's own
@@ -232,6 +233,10 @@ def analysis_rows(recording: str, summary: dict) -> list[dict]:
         # Its releases that went onto no constraint (the distances are in --json).
         row["release_misses"] = sum(miss["part"] == name
                                     for miss in summary.get("release_misses") or ())
+        # Of them, those after which the part landed on a constraint in flight (``landed``:
+        # a pin dropped into its bore), for a study that counts failed placements.
+        row["release_misses_landed"] = sum(miss["part"] == name and bool(miss.get("landed"))
+                                           for miss in summary.get("release_misses") or ())
         mass = (summary.get("masses_kg") or {}).get(name, "")
         # (To 12 digits: a mesh's mass properties carry round-off, 0.34559999999999996.)
         row["mass_kg"] = float(f"{mass:.12g}") if isinstance(mass, float) else mass
