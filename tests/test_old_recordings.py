@@ -35,7 +35,8 @@ def test_an_old_recording_names_the_changed_defaults_and_replays_with_them():
     assert changed["landing"] == {"recorded": "rests", "now": "constraints"}
     assert changed["contact_sweep"] == {"recorded": "frame_end", "now": "path"}
     assert changed["velocities"] == {"recorded": "relative", "now": "world"}
-    assert changed["release_velocity"] == {"recorded": "window_fit", "now": "window_fit_stops"}
+    assert changed["release_velocity"] == {"recorded": "window_fit",
+                                           "now": "window_fit_corners"}
     assert changed["slide_step_s"] == {"recorded": 1 / 180, "now": 1 / 60}
     # Before two hands lifted anything, they lifted what one hand lifts.
     assert changed["two_hand_max_mass_kg"] == {"recorded": 5.0, "now": 15.0}

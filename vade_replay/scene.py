@@ -74,7 +74,7 @@ COAXIAL_FITS = ("radial", "faces")
 LANDINGS = ("constraints", "rests")
 CONTACT_SWEEPS = ("path", "frame_end")
 VELOCITIES = ("world", "relative")
-RELEASE_VELOCITIES = ("window_fit_stops", "window_fit", "two_frame")
+RELEASE_VELOCITIES = ("window_fit_corners", "window_fit_stops", "window_fit", "two_frame")
 
 
 @dataclass(frozen=True)
@@ -92,8 +92,9 @@ class Physics:
     # 1/240 s steps is 2e-6 rad at 1.9 ms.
     free_rotation_order: int = 6
     free_rotation_max_step_s: float = 1.0 / 60.0
-    # paper: two_frame; window_fit: the default before 2026-11-23 (no stop check)
-    release_velocity: str = "window_fit_stops"
+    # paper: two_frame; window_fit: the default before 2026-11-23 (no stop check);
+    # window_fit_stops: before window_fit_corners (no corner check)
+    release_velocity: str = "window_fit_corners"
     release_window: int = 7
     grab_radius: float = 0.05
     one_hand_max_mass_kg: float = 5.0

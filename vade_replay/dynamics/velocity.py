@@ -11,6 +11,15 @@ engineer's trial), the quadratic through the motion and the stop overshooting it
 from a backswing (its slope against the window's way too) moves in its last step and is
 kept.
 
+``window_fit_corners`` (the default since 2026-11-23, fourth session) is
+``window_fit_stops``, except where the hand's last three steps are steady and the fit is off
+their mean by more than four times their scatter (``_unless_cornered``): the hand's path turned a corner within
+the window, which the quadratic spans and overshoots. There the slope of the line through
+the last four samples. Keyframes are joined by straight lines, so a keyframed hand turns in
+one frame: a researcher's trial let a pin go three frames after the hand turned straight
+down at 0.17 m/s, and it flew at 0.5 m/s, sideways too. A tracked hand does not turn so:
+its steps change by ``a dt`` each, and the fit's lag to their mean is ~1.5 of that.
+
 ``window_fit`` fits a quadratic in time, by least squares, to the last ``window`` positions
 and rotation vectors (taken relative to the newest orientation), and returns its slope at
 the newest sample. A straight line would be the velocity at the middle of the window and lag
@@ -142,7 +151,7 @@ def estimate(history: tuple, *, method: str, window: int) -> tuple[sp.Vec3, sp.V
     moments = _moments(times)
     v = _slope_at_zero(times, positions, moments)
     w = _slope_at_zero(times, rotvecs, moments)
-    if method == "window_fit_stops" and len(samples) > 3:
+    if (method == "window_fit_stops" or method == "window_fit_corners") and len(samples) > 3:
         # A hand that stops: the quadratic through the motion and the stop overshoots it,
         # and its slope at the newest sample points back against the way the hand went
         # over the window. Then the line through the last three samples is the velocity
@@ -150,7 +159,28 @@ def estimate(history: tuple, *, method: str, window: int) -> tuple[sp.Vec3, sp.V
         # std / dt a coordinate, so a hand at rest, whose way is noise, loses nothing).
         v = _unless_overshot(v, positions, times)
         w = _unless_overshot(w, rotvecs, times)
+        if method == "window_fit_corners" and len(samples) > 4:
+            v = _unless_cornered(v, positions, times)
+            w = _unless_cornered(w, rotvecs, times)
     return v, w
+
+
+def _unless_cornered(fit: sp.Vec3, values: list[sp.Vec3], times: list[float]) -> sp.Vec3:
+    """The fit's slope, or the line's through the last four samples where their three steps
+    are steady and the fit is off their mean velocity by more than four times their scatter
+    (the largest step's distance from the mean) and a hundredth of it: the path turned a
+    corner within the window (``window_fit_corners``). A fit that is the line already (a
+    straight stretch of keyframes) is left as it is."""
+    n = len(values)
+    steps = [sp.scale(sp.sub(values[i], values[i - 1]), 1.0 / (times[i] - times[i - 1]))
+             for i in range(n - 3, n)]
+    mean = sp.scale(sp.add(sp.add(steps[0], steps[1]), steps[2]), 1.0 / 3.0)
+    scatter = 0.0
+    for step in steps:
+        scatter = max(scatter, sp.norm(sp.sub(step, mean)))
+    if sp.norm(sp.sub(fit, mean)) <= 4.0 * scatter + 0.01 * sp.norm(mean) + 1e-9:
+        return fit
+    return _line_slope(times[-4:], values[-4:])
 
 
 def _unless_overshot(fit: sp.Vec3, values: list[sp.Vec3], times: list[float]) -> sp.Vec3:
