@@ -69,7 +69,9 @@ def going_on_without_stdout():
 
 def run(main: Callable[[list[str] | None], int], argv: list[str] | None = None) -> int:
     """Call ``main``; turn a ``VadeError`` into one line on stderr and exit code 2."""
+    global UNDONE
     StdoutOrNothing.gone = False
+    UNDONE = ""  # (a command sets its own: a run in the same process must not inherit it)
     try:
         code = main(argv)
         sys.stdout.flush()  # inside: what is still buffered may meet a reader gone

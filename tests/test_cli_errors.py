@@ -853,14 +853,17 @@ def test_a_run_stopped_by_a_closed_standard_output_names_only_what_it_left_undon
 
     def closing(argv):
         raise BrokenPipeError
+
+    def checking(argv):  # as vade-goldens --check's main says what it leaves undone
+        _common.UNDONE = "the goldens after the last one named were not checked"
+        raise BrokenPipeError
     monkeypatch.setattr(_common, "closed_pipe", lambda stream: stream is sys.stdout)
     monkeypatch.setattr(_common, "_to_devnull", lambda stream: None)
-    monkeypatch.setattr(_common, "UNDONE", "")
-    assert _common.run(closing) == 141
+    assert _common.run(checking) == 141
+    capsys.readouterr()
+    assert _common.run(closing) == 141  # (not the run before's)
     assert capsys.readouterr().err == "stopped: standard output was closed by its reader\n"
-    monkeypatch.setattr(_common, "UNDONE", "the goldens after the last one named were not "
-                                           "checked")
-    assert _common.run(closing) == 141
+    assert _common.run(checking) == 141
     assert capsys.readouterr().err.endswith("reader; the goldens after the last one named "
                                             "were not checked\n")
 

@@ -63,6 +63,16 @@ def test_reused_snapshots_equal_snapshots_made_afresh(monkeypatch):
         return sum(a is b for r0, r1 in zip(records, records[1:])
                    for a, b in zip(r0.parts, r1.parts))
     assert shared(reused) > 0 and shared(fresh) == 0
+    # A base held in a moving hand, with a part turning on it and one placed: the world
+    # velocities (physics ``velocities``) too (a review: they were the relative ones where
+    # snapshots were made afresh).
+    gear = make_session(three_part_session(4.0))
+    monkeypatch.setattr(step_module, "_REUSE_SNAPSHOTS", True)
+    reused, _ = _run(gear)
+    assert any(r.base.angular_velocity != (0.0, 0.0, 0.0) for r in reused)
+    monkeypatch.setattr(step_module, "_REUSE_SNAPSHOTS", False)
+    fresh, _ = _run(gear)
+    assert _values(reused) == _values(fresh)
 
 
 def test_a_resting_part_among_many_can_be_grabbed():

@@ -144,10 +144,16 @@ class WorldState:
     # The ``parts`` tuple ``awake`` was worked out for: a state copied with other parts
     # (``dataclasses.replace``) does not match it, and its awake set is worked out anew.
     awake_of: tuple | None
+    # The base's poses at its last left-hand samples, ``(t_ns, centre of mass, rotation)``,
+    # oldest first, as a held part's (``Held.history``): its world velocity is fitted to
+    # them (physics ``velocities: world``). Its session pose before the hand took it is not
+    # among them: that jump is no motion.
+    base_history: tuple
 
     def __init__(self, frame: int, time_ns: int, parts: tuple[PartState, ...],
                  base_pose: sp.Pose | None, grips: tuple[tuple[str, bool], ...],
-                 awake: tuple[int, ...] | None = None, awake_of: tuple | None = None) -> None:
+                 awake: tuple[int, ...] | None = None, awake_of: tuple | None = None,
+                 base_history: tuple = ()) -> None:
         self.frame = frame
         self.time_ns = time_ns
         self.parts = parts
@@ -155,6 +161,7 @@ class WorldState:
         self.grips = grips
         self.awake = awake
         self.awake_of = awake_of
+        self.base_history = base_history
 
     def awake_parts(self) -> tuple[int, ...] | None:
         """``awake`` if it belongs to these parts, else None (unknown)."""

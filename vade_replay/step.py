@@ -125,6 +125,14 @@ def step(scene: Scene, collision: CollisionWorld, state: WorldState,
                base_pose=state.base_pose, base_prev=state.base_pose, awake=awake)
     _read_hands(f, state)
     _move_base(f)
+    history = state.base_history
+    if f.base_pose is not state.base_pose and scene.physics.velocities == "world" \
+            and scene.base is not None:
+        # A left-hand sample moved the base: its pose joins the base's history.
+        keep = max(scene.physics.release_window, 2)
+        history = (*history[-(keep - 1):], (inputs.time_ns,
+                                            f.base_pose.apply(scene.base.center_of_mass),  # type: ignore[union-attr]
+                                            f.base_pose.rotation))  # type: ignore[union-attr]
     _follow_hands(f)
     _move_free_parts(f)
     _check_resting_on_base(f)
@@ -137,7 +145,7 @@ def step(scene: Scene, collision: CollisionWorld, state: WorldState,
     new_state = WorldState(inputs.frame, inputs.time_ns, parts, f.base_pose,
                            ((LEFT, grips[LEFT]), (RIGHT, grips[RIGHT])) if not scene.tools
                            else tuple(sorted(grips.items())),
-                           _awake(parts) if f.modes_changed else awake, parts)
+                           _awake(parts) if f.modes_changed else awake, parts, history)
     return new_state, tuple(f.events)
 
 
@@ -1809,23 +1817,31 @@ def frame_record(scene: Scene, state: WorldState, inputs: TrackerFrame,
     text). Only the parts awake before or after the step can have changed.
     """
     base = None
-    # The base's motion over the frame, for world velocities (physics ``velocities``): None
-    # where it did not move, or for ``relative``.
-    moving: tuple[sp.Pose, sp.Pose, float] | None = None
+    # The base's velocity (its centre of mass's) and angular velocity, and where its centre
+    # of mass is, for world velocities (physics ``velocities``): fitted to its last samples
+    # as a held part's are (``velocity.estimate``), so that a gap in the left hand's
+    # samples, a duplicated one or its first (the base taken from its session pose into the
+    # hand) is no spike (a review: a one-frame difference read 57 m/s at the first, three
+    # times the turn after a gap). None for ``relative``, or fewer than two samples.
+    moving: tuple[sp.Vec3, sp.Vec3, sp.Vec3] | None = None
     if scene.base is not None and state.base_pose is not None:
+        history = state.base_history
+        if len(history) >= 2:
+            # (Positions from the newest, so that a base at rest reads 0, not round-off.)
+            newest = history[-1][1]
+            v, w = velocity.estimate(
+                tuple((t, sp.sub(cm, newest), q) for t, cm, q in history),
+                method=scene.physics.release_velocity, window=scene.physics.release_window)
+            moving = (v, w, state.base_pose.apply(scene.base.center_of_mass))
         if previous is not None and previous[0].base_pose is state.base_pose \
-                and previous[1].base is not None:
+                and previous[0].base_history is history and previous[1].base is not None:
             base = previous[1].base  # a base that did not move (fixed, or no left hand)
         else:
-            v, w = sp.ZERO3, sp.ZERO3
-            before = previous[0].base_pose if previous is not None else None
-            dt = (state.time_ns - previous[0].time_ns) * 1e-9 if previous is not None else 0.0
-            if before is not None and dt > 0.0 and scene.physics.velocities == "world":
-                moving = (before, state.base_pose, dt)
-                v, w = base_velocity(before, state.base_pose, dt, scene.base.center_of_mass)
             base = PartSnapshot(scene.base.name,
                                 _STATIC_TEXT if scene.base_fixed else _INHAND_TEXT,
-                                state.base_pose.position, state.base_pose.rotation, v, w)
+                                state.base_pose.position, state.base_pose.rotation,
+                                sp.ZERO3 if moving is None else moving[0],
+                                sp.ZERO3 if moving is None else moving[1])
     prev_awake = previous[0].awake_parts() if previous is not None else None
     awake = state.awake_parts()
     if previous is None or prev_awake is None or awake is None:
@@ -1841,18 +1857,19 @@ def frame_record(scene: Scene, state: WorldState, inputs: TrackerFrame,
 
 
 def _snapshot_in(scene: Scene, index: int, part: PartState,
-                 moving: tuple[sp.Pose, sp.Pose, float] | None) -> PartSnapshot:
+                 moving: tuple[sp.Vec3, sp.Vec3, sp.Vec3] | None) -> PartSnapshot:
     """``snapshot(part)``, with world velocities for a part on the base (``moving``: the
-    base's poses over the frame and its length): the base's own motion at the part's
-    centre of mass added to its motion relative to the base (zero at rest on it, or
-    placed), as the schema's "world velocity" says; before ``velocities: world`` those
-    were recorded as relative velocities, in world axes."""
+    base's fitted velocity at its centre of mass, its angular velocity, and where its
+    centre of mass is): the base's motion at the part's centre of mass added to its motion
+    relative to the base (zero at rest on it, or placed), as the schema's "world velocity"
+    says; before ``velocities: world`` those were recorded as relative velocities, in world
+    axes."""
     mode = part.mode
     if moving is None or not (mode is ONBASESLIDE or mode is ONBASESTATIC or mode is PLACED):
         return snapshot(part)
-    before, after, dt = moving
-    cm = after.inverse().apply(part.pose.apply(scene.parts[index].center_of_mass))
-    v, w = base_velocity(before, after, dt, cm)
+    v_base, w, cm_base = moving
+    cm = part.pose.apply(scene.parts[index].center_of_mass)
+    v = sp.add(v_base, sp.cross(w, sp.sub(cm, cm_base)))
     return PartSnapshot(part.name, mode._value_, part.pose.position, part.pose.rotation,
                         sp.add(part.linear_velocity, v), sp.add(part.angular_velocity, w))
 
