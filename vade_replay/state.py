@@ -144,16 +144,17 @@ class WorldState:
     # The ``parts`` tuple ``awake`` was worked out for: a state copied with other parts
     # (``dataclasses.replace``) does not match it, and its awake set is worked out anew.
     awake_of: tuple | None
-    # The base's poses at its last left-hand samples, ``(t_ns, centre of mass, rotation)``,
-    # oldest first, as a held part's (``Held.history``): its world velocity is fitted to
-    # them (physics ``velocities: world``). Its session pose before the hand took it is not
-    # among them: that jump is no motion.
-    base_history: tuple
+    # The base's last left-hand sample that moved it, ``(t_ns, centre of mass, rotation)``,
+    # or None (none yet: its session pose before the hand took it is no sample, and that
+    # jump no motion), and its velocity and angular velocity since the sample before, or
+    # None (physics ``velocities: world``; ``step._base_sample``).
+    base_sample: tuple | None
+    base_velocity: tuple | None
 
     def __init__(self, frame: int, time_ns: int, parts: tuple[PartState, ...],
                  base_pose: sp.Pose | None, grips: tuple[tuple[str, bool], ...],
                  awake: tuple[int, ...] | None = None, awake_of: tuple | None = None,
-                 base_history: tuple = ()) -> None:
+                 base_sample: tuple | None = None, base_velocity: tuple | None = None) -> None:
         self.frame = frame
         self.time_ns = time_ns
         self.parts = parts
@@ -161,7 +162,8 @@ class WorldState:
         self.grips = grips
         self.awake = awake
         self.awake_of = awake_of
-        self.base_history = base_history
+        self.base_sample = base_sample
+        self.base_velocity = base_velocity
 
     def awake_parts(self) -> tuple[int, ...] | None:
         """``awake`` if it belongs to these parts, else None (unknown)."""

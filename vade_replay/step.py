@@ -125,14 +125,10 @@ def step(scene: Scene, collision: CollisionWorld, state: WorldState,
                base_pose=state.base_pose, base_prev=state.base_pose, awake=awake)
     _read_hands(f, state)
     _move_base(f)
-    history = state.base_history
+    base_sample, base_velocity = state.base_sample, state.base_velocity
     if f.base_pose is not state.base_pose and scene.physics.velocities == "world" \
             and scene.base is not None:
-        # A left-hand sample moved the base: its pose joins the base's history.
-        keep = max(scene.physics.release_window, 2)
-        history = (*history[-(keep - 1):], (inputs.time_ns,
-                                            f.base_pose.apply(scene.base.center_of_mass),  # type: ignore[union-attr]
-                                            f.base_pose.rotation))  # type: ignore[union-attr]
+        base_sample, base_velocity = _base_sample(f, scene.base, base_sample, base_velocity)
     _follow_hands(f)
     _move_free_parts(f)
     _check_resting_on_base(f)
@@ -145,8 +141,34 @@ def step(scene: Scene, collision: CollisionWorld, state: WorldState,
     new_state = WorldState(inputs.frame, inputs.time_ns, parts, f.base_pose,
                            ((LEFT, grips[LEFT]), (RIGHT, grips[RIGHT])) if not scene.tools
                            else tuple(sorted(grips.items())),
-                           _awake(parts) if f.modes_changed else awake, parts, history)
+                           _awake(parts) if f.modes_changed else awake, parts,
+                           base_sample, base_velocity)
     return new_state, tuple(f.events)
+
+
+def _base_sample(f: _Frame, base: Body, last: tuple | None,
+                 motion: tuple | None) -> tuple[tuple, tuple | None]:
+    """The base moved to a left-hand sample: that sample, and the base's velocity (its
+    centre of mass's) and angular velocity since the sample before, over their times
+    (physics ``velocities: world``; recorded, they drive nothing). None with no sample
+    before: the hand taking the base from its session pose is no motion (a review: a
+    one-frame difference of poses read 57 m/s there). A sample closer than the release
+    fit's ``MIN_INTERVAL_NS`` to the one before (a duplicated timestamp) is passed over,
+    the velocity the one before (``motion``). A one-sample difference, not the held parts'
+    window fit: the fit cost ~5 us a frame, a third of a step, for a velocity nothing
+    reads back; a device missing from a log's frame keeps its last sample, so the base
+    holds there (0) and steps the gap's motion in the frame after, as simulated."""
+    pose = f.base_pose
+    sample = (f.t_ns, pose.apply(base.center_of_mass), pose.rotation)  # type: ignore[union-attr]
+    if last is None:
+        return sample, None
+    t_last, cm_last, q_last = last[0], last[1], last[2]
+    if f.t_ns - t_last < velocity.MIN_INTERVAL_NS:
+        return last, motion
+    dt = (f.t_ns - t_last) * 1e-9
+    v = sp.scale(sp.sub(sample[1], cm_last), 1.0 / dt)
+    w = sp.scale(sp.quat_to_rotvec(sp.quat_mul(sample[2], sp.quat_conj(q_last))), 1.0 / dt)
+    return sample, (v, w)
 
 
 # --- stages ---------------------------------------------------------------------------
@@ -1818,23 +1840,15 @@ def frame_record(scene: Scene, state: WorldState, inputs: TrackerFrame,
     """
     base = None
     # The base's velocity (its centre of mass's) and angular velocity, and where its centre
-    # of mass is, for world velocities (physics ``velocities``): fitted to its last samples
-    # as a held part's are (``velocity.estimate``), so that a gap in the left hand's
-    # samples, a duplicated one or its first (the base taken from its session pose into the
-    # hand) is no spike (a review: a one-frame difference read 57 m/s at the first, three
-    # times the turn after a gap). None for ``relative``, or fewer than two samples.
+    # of mass is, for world velocities (physics ``velocities``; ``_base_sample``): None for
+    # ``relative``, or before its second sample.
     moving: tuple[sp.Vec3, sp.Vec3, sp.Vec3] | None = None
     if scene.base is not None and state.base_pose is not None:
-        history = state.base_history
-        if len(history) >= 2:
-            # (Positions from the newest, so that a base at rest reads 0, not round-off.)
-            newest = history[-1][1]
-            v, w = velocity.estimate(
-                tuple((t, sp.sub(cm, newest), q) for t, cm, q in history),
-                method=scene.physics.release_velocity, window=scene.physics.release_window)
-            moving = (v, w, state.base_pose.apply(scene.base.center_of_mass))
+        motion = state.base_velocity
+        if motion is not None:
+            moving = (motion[0], motion[1], state.base_pose.apply(scene.base.center_of_mass))
         if previous is not None and previous[0].base_pose is state.base_pose \
-                and previous[0].base_history is history and previous[1].base is not None:
+                and previous[0].base_velocity is motion and previous[1].base is not None:
             base = previous[1].base  # a base that did not move (fixed, or no left hand)
         else:
             base = PartSnapshot(scene.base.name,

@@ -36,6 +36,7 @@ less than half a turn per frame are measured right.
 
 from __future__ import annotations
 
+import math
 from typing import Final
 
 from .. import spatial as sp
@@ -170,17 +171,32 @@ def _unless_cornered(fit: sp.Vec3, values: list[sp.Vec3], times: list[float]) ->
     are steady and the fit is off their mean velocity by more than four times their scatter
     (the largest step's distance from the mean) and a hundredth of it: the path turned a
     corner within the window (``window_fit_corners``). A fit that is the line already (a
-    straight stretch of keyframes) is left as it is."""
+    straight stretch of keyframes) is left as it is. (Written out on floats: with lists of
+    vectors it doubled the cost of every held part's velocity, ~2.7 us.)"""
     n = len(values)
-    steps = [sp.scale(sp.sub(values[i], values[i - 1]), 1.0 / (times[i] - times[i - 1]))
-             for i in range(n - 3, n)]
-    mean = sp.scale(sp.add(sp.add(steps[0], steps[1]), steps[2]), 1.0 / 3.0)
-    scatter = 0.0
-    for step in steps:
-        scatter = max(scatter, sp.norm(sp.sub(step, mean)))
-    if sp.norm(sp.sub(fit, mean)) <= 4.0 * scatter + 0.01 * sp.norm(mean) + 1e-9:
+    a0, a1, a2 = values[n - 4]
+    b0, b1, b2 = values[n - 3]
+    c0, c1, c2 = values[n - 2]
+    d0, d1, d2 = values[n - 1]
+    k = 1.0 / (times[n - 3] - times[n - 4])
+    p0, p1, p2 = (b0 - a0) * k, (b1 - a1) * k, (b2 - a2) * k
+    k = 1.0 / (times[n - 2] - times[n - 3])
+    q0, q1, q2 = (c0 - b0) * k, (c1 - b1) * k, (c2 - b2) * k
+    k = 1.0 / (times[n - 1] - times[n - 2])
+    r0, r1, r2 = (d0 - c0) * k, (d1 - c1) * k, (d2 - c2) * k
+    third = 1.0 / 3.0
+    m0, m1, m2 = (p0 + q0 + r0) * third, (p1 + q1 + r1) * third, (p2 + q2 + r2) * third
+    scatter = max(_length(p0 - m0, p1 - m1, p2 - m2), _length(q0 - m0, q1 - m1, q2 - m2),
+                  _length(r0 - m0, r1 - m1, r2 - m2))
+    off = _length(fit[0] - m0, fit[1] - m1, fit[2] - m2)
+    if off <= 4.0 * scatter + 0.01 * _length(m0, m1, m2) + 1e-9:
         return fit
     return _line_slope(times[-4:], values[-4:])
+
+
+def _length(x: float, y: float, z: float) -> float:
+    """``sp.norm((x, y, z))``, the same operations, on three floats."""
+    return math.sqrt(x * x + y * y + z * z)
 
 
 def _unless_overshot(fit: sp.Vec3, values: list[sp.Vec3], times: list[float]) -> sp.Vec3:
