@@ -65,8 +65,9 @@ def test_the_cli_says_so_beside_the_divergence(tmp_path):
     assert lines[1].startswith("note: this recording was made with other physics defaults")
     assert lines[1].endswith(f"to replay it as it was made: vade-replay {OLD} --as-recorded")
     many = run_cli("vade-replay", str(OLD), str(RECORDINGS / "gear_pendulum.mcap"))
-    assert ("(made with other physics defaults: block_cut, block_event, coaxial_fit, contact_sweep, "
-            "final_pose_check, flight_grace, landing, release_velocity, slide_integrator, slide_off, "
+    assert ("(made with other physics defaults: block_cut, block_event, coaxial_fit, "
+            "contact_sweep, final_pose_check, flight_grace, landing, release_velocity, "
+            "slide_integrator, slide_off, "
             "slide_onset, slide_step_s, two_hand_max_mass_kg, velocities; "
             f"vade-replay {OLD} --as-recorded replays it with them)") in many.stdout
     # What it says works: the recording reproduces, bit for bit, exit 0.
@@ -173,8 +174,9 @@ def test_vade_goldens_check_says_a_default_changed_since_a_golden_was_recorded(t
     result = run_cli("vade-goldens", "--check", "--dir", str(tmp_path))
     assert result.returncode == 1
     assert "DIVERGED first divergence at frame" in result.stdout
-    assert ("recorded with other physics defaults: block_cut, block_event, coaxial_fit, contact_sweep, "
-            "final_pose_check, flight_grace, landing, release_velocity, slide_integrator, slide_off, "
+    assert ("recorded with other physics defaults: block_cut, block_event, coaxial_fit, "
+            "contact_sweep, final_pose_check, flight_grace, landing, release_velocity, "
+            "slide_integrator, slide_off, "
             "slide_onset, slide_step_s, two_hand_max_mass_kg, velocities; "
             f"vade-replay {tmp_path / 'shaft_slide_off.mcap'} --as-recorded replays it with "
             "them; if the change is meant, re-record with vade-goldens") in result.stdout

@@ -931,10 +931,11 @@ def _onto_base(f: _Frame, index: int, base_from_part: sp.Pose, hand: str | None)
 def _lands_clear(f: _Frame, body: Body, mate: cn.Mate, m: OnBase) -> bool:
     """A flying part goes onto a constraint it met only where, snapped onto it, it is on
     the constraint's feature (``_still_on_base``: over the plane's face; on an axis the
-    snap puts the bore on the shaft) and clear of the rest of the base (no deeper into it than half the tolerance, as
-    a move on the base may be). A review: a block thrown against the plate's side was
-    snapped up onto the plane's line beside the plate, and one dropped on a low rib was
-    snapped into it. (A release does not ask: the paper recognises by the features alone.)"""
+    snap puts the bore on the shaft) and clear of the rest of the base (no deeper into it
+    than half the tolerance, as a move on the base may be). A review: a block thrown
+    against the plate's side was snapped up onto the plane's line beside the plate, and one
+    dropped on a low rib was snapped into it. (A release does not ask: the paper recognises
+    by the features alone.)"""
     # (On an axis the snap has put the bore on the shaft or onto its end already; at the
     # end a loose fit's walls are farther apart than the tolerance, which would say off.)
     if mate.kind != "axis" and not _still_on_base(

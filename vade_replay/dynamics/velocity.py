@@ -12,13 +12,14 @@ from a backswing (its slope against the window's way too) moves in its last step
 kept.
 
 ``window_fit_corners`` (the default since 2026-11-23, fourth session) is
-``window_fit_stops``, except where the hand's last three steps are steady and the fit is off
-their mean by more than four times their scatter (``_unless_cornered``): the hand's path turned a corner within
-the window, which the quadratic spans and overshoots. There the slope of the line through
-the last four samples. Keyframes are joined by straight lines, so a keyframed hand turns in
-one frame: a researcher's trial let a pin go three frames after the hand turned straight
-down at 0.17 m/s, and it flew at 0.5 m/s, sideways too. A tracked hand does not turn so:
-its steps change by ``a dt`` each, and the fit's lag to their mean is ~1.5 of that.
+``window_fit_stops``, except where the hand's last three steps are steady and the fit is
+off their mean by more than four times their scatter (``_unless_cornered``): the hand's
+path turned a corner within the window, which the quadratic spans and overshoots. There
+the slope of the line through the last four samples. Keyframes are joined by straight
+lines, so a keyframed hand turns in one frame: a researcher's trial let a pin go three
+frames after the hand turned straight down at 0.17 m/s, and it flew at 0.5 m/s, sideways
+too. A tracked hand does not turn so: its steps change by ``a dt`` each, and the fit's lag
+to their mean is ~1.5 of that.
 
 ``window_fit`` fits a quadratic in time, by least squares, to the last ``window`` positions
 and rotation vectors (taken relative to the newest orientation), and returns its slope at
