@@ -8,7 +8,7 @@ from pathlib import Path
 
 from vade_replay import session as session_mod
 from vade_replay.errors import ConfigError
-from vade_replay.replay import describe_miss, record
+from vade_replay.replay import miss_line, record
 
 from ._common import EXIT_OK, Progress, not_standard_output, print_json, run
 
@@ -46,7 +46,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"recorded {summary.frames} frames ({summary.duration_s:.2f} s, "
               f"{summary.transitions} transitions) of {session.name} to {out}")
         for miss in summary.release_misses:
-            print(f"not on a constraint: {describe_miss(miss)}")
+            print(miss_line(miss))
         for line in _outcome_lines(summary.to_dict()["analysis"], session.doc):
             print(line)
     return EXIT_OK

@@ -15,7 +15,7 @@ from typing import Iterator, TextIO
 from vade_replay.errors import ConfigError
 from vade_replay.recording import Recording, ensure_writable
 from vade_replay.replay import (ANALYSIS_COLUMNS, analysis_rows, apply_overrides,
-                                describe_miss, replay)
+                                miss_line, replay)
 from vade_replay.tables import FRAME_TABLES, STDOUT, FrameTables, TableError, TableFile
 
 from vade_replay.errors import VadeError
@@ -553,7 +553,7 @@ def _verdict(summary, overrides: dict[str, str], *, short: bool = False,
         text = f"as recorded ({listed or 'no default changed since it was made'}): {text}"
     if not short:
         for miss in getattr(summary, "release_misses", []):
-            text += f"\nnot on a constraint: {describe_miss(miss)}"
+            text += "\n" + miss_line(miss)
     return text
 
 

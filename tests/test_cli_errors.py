@@ -881,3 +881,33 @@ def test_a_study_what_if_line_says_what_changed_in_the_analysis():
     assert line.endswith("; analysis changed: " + changes[len("analysis: "):])
     other = next(x for x in result.stdout.splitlines() if x.startswith(files[1]))
     assert "the recording is unchanged" in other and "analysis" not in other
+
+
+def test_a_mesh_edited_between_takes_is_replaced_with_a_note_and_a_log_is_refused(tmp_path):
+    """An engineer's trial: a mesh added to the base (the design edited, the same hands) was
+    refused as "other tracker input (another take?)": every file of the session counted as
+    tracker input. Only the tracker's own log does; an edited mesh is replaced with a note
+    naming the file, and an edited log is still refused, as another take."""
+    import trimesh
+
+    from test_world_velocities import _shaft_placed, _with_log
+    doc, files = _with_log(_shaft_placed())
+    base = trimesh.creation.box(extents=[0.02, 0.02, 0.02])
+    doc["base"]["shape"] = {"type": "compound", "children": [
+        doc["base"]["shape"], {"type": "mesh", "file": "block.stl", "units": "m",
+                               "pose": {"position": [0.1, 0.0, 0.0]}}]}
+    files["block.stl"] = base.export(file_type="stl")
+    for name, data in files.items():
+        (tmp_path / name).write_bytes(data)
+    session = _write(tmp_path, doc)
+    out = tmp_path / "take.mcap"
+    assert run_cli("vade-record", str(session), "-o", str(out)).returncode == 0
+    (tmp_path / "block.stl").write_bytes(
+        trimesh.creation.box(extents=[0.03, 0.02, 0.02]).export(file_type="stl"))
+    edited = run_cli("vade-record", str(session), "-o", str(out))
+    assert edited.returncode == 0 and (f"note: replacing {out}, a recording of 'shaft_placed' "
+                                       "made otherwise (its files, block.stl)") in edited.stderr
+    log = tmp_path / "tracker.csv"
+    log.write_text(log.read_text().replace("\n0.5,", "\n0.5000001,", 1))
+    _assert_clean_error(run_cli("vade-record", str(session), "-o", str(out)),
+                        "a recording of 'shaft_placed' with other tracker input", "--force")

@@ -129,6 +129,12 @@ def test_the_release_miss_of_a_pin_that_then_landed_on_its_bore_says_so(tmp_path
         assert describe_miss(miss).endswith(
             f": released; then landed on a constraint in flight at frame {landing} "
             "(landed_on_constraint, ONBASESLIDE)")
+    # The command's line says so first (an engineer's trial: a pin dropped in and placed
+    # read as a failure, "not on a constraint: ...").
+    from conftest import run_cli
+    result = run_cli("vade-replay", str(tmp_path / "drop.mcap"))
+    assert "\nlet go off a constraint, then landed on one: frame 60 " in result.stdout
+    assert "not on a constraint" not in result.stdout
 
 
 def _block_edge(right_hand: list[dict], landing: str, rib: bool = False) -> dict:

@@ -656,7 +656,13 @@ def refuse_replacing(out: str | Path, session: Session, scene: Scene) -> str | N
     if theirs.name != session.name:
         raise ConfigError(f"it holds a recording of another session ({theirs.name!r}); pass "
                           "--force to replace it, or choose another output", file=str(out))
-    if theirs.doc.get("tracker") != session.doc.get("tracker") or theirs.files != session.files:
+    # The tracker's own file (a CSV log) is its input; the others (meshes) are the
+    # design's, which an engineer edits between takes (a trial: a mesh added to the base
+    # was refused as "other tracker input").
+    logs = {name for name in (theirs.doc.get("tracker", {}).get("csv"),
+                              session.doc.get("tracker", {}).get("csv")) if name}
+    if theirs.doc.get("tracker") != session.doc.get("tracker") \
+            or any(theirs.files.get(name) != session.files.get(name) for name in logs):
         # Another take, or another participant on the same session template: its tracker
         # input may exist nowhere else (a review).
         raise ConfigError(f"it holds a recording of {session.name!r} with other tracker input "
@@ -666,6 +672,10 @@ def refuse_replacing(out: str | Path, session: Session, scene: Scene) -> str | N
     differs = []
     if theirs.doc != session.doc:
         differs.append("its session, in " + ", ".join(_changed_fields(theirs.doc, session.doc)))
+    files = sorted(name for name in set(theirs.files) | set(session.files)
+                   if name not in logs and theirs.files.get(name) != session.files.get(name))
+    if files:
+        differs.append("its files, " + ", ".join(files))
     if physics is not None and physics != ours:
         differs.append(f"its physics, in {', '.join(_changed_fields(physics, ours))}")
     if not differs:
@@ -1330,6 +1340,15 @@ def describe_miss(miss: dict) -> str:
             f"{miss['nearest_constraint']}{end} (tolerances "
             f"{miss['distance_tolerance_m'] * 1e3:.3g} mm, {miss['angle_tolerance_deg']:.3g} "
             f"deg): {miss['cause']}{_landed_text(miss.get('landed'))}")
+
+
+def miss_line(miss: dict) -> str:
+    """The line a command prints of a release miss: ``not on a constraint: ...``, or, for a
+    part that then landed on one in flight, ``let go off a constraint, then landed on one:
+    ...`` (an engineer's trial: a pin dropped into its bore and placed read as a failure)."""
+    head = "let go off a constraint, then landed on one" if miss.get("landed") \
+        else "not on a constraint"
+    return f"{head}: {describe_miss(miss)}"
 
 
 def _landed_text(landing: dict | None) -> str:
