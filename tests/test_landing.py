@@ -217,3 +217,13 @@ def test_the_study_table_counts_misses_that_then_landed_apart(tmp_path):
     (row,) = csv.DictReader((tmp_path / "t.csv").open())
     assert row["part"] == "pin" and row["placed_at_s"] != ""
     assert row["release_misses"] == "1" and row["release_misses_landed"] == "1"
+
+
+def test_the_paper_model_recognises_constraints_on_release_only():
+    """``model: paper`` is the paper's rules, which recognise constraints on release only (a
+    review: it took the new ``landing: constraints``): the pin dropped above its bore lies
+    on the rim, as under ``landing: rests``."""
+    doc = _dropped(4.99, 30)
+    doc["physics"]["model"] = "paper"
+    causes = _causes(run_records(doc))
+    assert causes == ["grabbed", "released", "landed_on_base"]

@@ -219,7 +219,10 @@ class Physics:
 PAPER_DEFAULTS = {"free_rotation": "constant_omega", "release_velocity": "two_frame",
                   "slide_integrator": "paper", "turn_integrator": "paper",
                   "slide_off": "frame_end",  # the paper decides sliding frame by frame
-                  "final_pose_check": "frame_end", "block_cut": "both"}
+                  "final_pose_check": "frame_end", "block_cut": "both",
+                  # The paper recognises constraints on release only, and checks a move on
+                  # the base at the frame's end.
+                  "landing": "rests", "contact_sweep": "frame_end"}
 LENGTH_FIELDS = ("grab_radius", "contact_tolerance")
 
 

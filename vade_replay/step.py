@@ -129,6 +129,8 @@ def step(scene: Scene, collision: CollisionWorld, state: WorldState,
     if f.base_pose is not state.base_pose and scene.physics.velocities == "world" \
             and scene.base is not None:
         base_sample, base_velocity = _base_sample(f, scene.base, base_sample, base_velocity)
+    elif base_velocity is not None:
+        base_velocity = None  # no left-hand sample this frame: the base did not move
     _follow_hands(f)
     _move_free_parts(f)
     _check_resting_on_base(f)
@@ -1025,8 +1027,8 @@ def _check_resting_on_base(f: _Frame) -> None:
     """ONBASESTATIC: does gravity now pull it off, or overcome static friction?"""
     for index in f.awake:
         part = f.parts[index]
-        if part.mode is not ONBASESTATIC or f.base_pose is None:
-            continue
+        if part.mode is not ONBASESTATIC or f.base_pose is None or index in f.landed:
+            continue  # (landed this frame: at rest on it to the frame's end, as let go)
         body = f.scene.parts[index]
         located = f.scene.physics.slide_off == "located" and f.dt_s > 0.0
         if isinstance(part.motion, Resting):
@@ -1497,10 +1499,11 @@ def _sweep(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, x1: tuple[float, ...
                 met = _sweep_from_contact(f, body, mate, m, at, speed, lift)
                 if met is not None:
                     d_met = distance(*at(met))
-                    if d_met >= 0.5 * tol - _CONTACT_SLACK_M:
-                        hit, d = met, d_met
-                    # (Else it went deeper into what it touched before that: stopped at
-                    # the frame's start, as the end's check has it.)
+                    # Else it went deeper into what it touched before it met that: stopped
+                    # at the frame's start, as the end's check stops such a move (a review:
+                    # where the end's check had let it through, the block was dropped).
+                    hit, d = (met, d_met) if d_met >= 0.5 * tol - _CONTACT_SLACK_M \
+                        else (0.0, d)
     else:
         for _ in range(_CA_BASE_ITERATIONS):
             step_len = (d - 0.5 * tol) / speed
