@@ -969,15 +969,9 @@ def _base_motion(f: _Frame, point_base: sp.Vec3) -> tuple[sp.Vec3, sp.Vec3]:
     dt = f.dt_s
     if f.base_prev is None or dt <= 0.0:
         return sp.ZERO3, sp.ZERO3
-    return base_velocity(f.base_prev, f.base_pose, dt, point_base)  # type: ignore[arg-type]
-
-
-def base_velocity(before: sp.Pose, after: sp.Pose, dt: float,
-                  point_base: sp.Vec3) -> tuple[sp.Vec3, sp.Vec3]:
-    """World velocity of the base-fixed point ``point_base`` and the base's angular
-    velocity, over ``dt`` seconds from pose ``before`` to ``after``."""
-    v = sp.scale(sp.sub(after.apply(point_base), before.apply(point_base)), 1.0 / dt)
-    rel = sp.quat_mul(after.rotation, sp.quat_conj(before.rotation))
+    v = sp.scale(sp.sub(f.base_pose.apply(point_base), f.base_prev.apply(point_base)),  # type: ignore[union-attr]
+                 1.0 / dt)
+    rel = sp.quat_mul(f.base_pose.rotation, sp.quat_conj(f.base_prev.rotation))  # type: ignore[union-attr]
     return v, sp.scale(sp.quat_to_rotvec(rel), 1.0 / dt)
 
 
