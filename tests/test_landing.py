@@ -63,15 +63,28 @@ def test_a_pin_dropped_above_its_bore_lands_on_it_slides_down_and_is_placed(radi
     """Let go 30 mm above the mouth and 1 mm off the axis (within the constraint's 5 mm
     recognition distance and 10 degrees), a tight pin and a loose one fall freely onto the
     bore's rim, go onto the constraint there (``landed_on_constraint``: snapped onto the
-    axis, its end onto the mouth, at rest), fall freely down the bore (no friction on a
-    vertical shaft) and are placed on the plate; counted as a drop. Under ``rests`` (the
-    paper's rule) the same pin lies on the rim, on the base, and is never placed."""
+    axis, its end onto the mouth, keeping the speed it fell in with down the axis:
+    ``physics.snap_velocity`` along_constraint), go on falling freely down the bore from
+    that speed (no friction on a vertical shaft) and are placed on the plate; counted as a
+    drop. Under ``snap_velocity: zero`` (the paper's snap) the fall down the bore starts at
+    rest. Under ``landing: rests`` (the paper's rule) the same pin lies on the rim, on the
+    base, and is never placed."""
     records = run_records(_dropped(radius_mm, 30))
-    _free_fall_until_contact(records, 0.030)
-    _placed_after_a_free_fall(records, onto=("released", "landed_on_constraint"))
+    t_c = _free_fall_until_contact(records, 0.030)
+    v_c = G_FREE * t_c  # the closed form's speed at the contact
+    _placed_after_a_free_fall(records, onto=("released", "landed_on_constraint"), v0=v_c)
     landed = next(r for r in records for e in r.events if e.cause == "landed_on_constraint")
     assert landed.parts[0].position[0] == pytest.approx(0.030, abs=1e-12)  # onto the axis
-    assert landed.parts[0].linear_velocity == (0.0, 0.0, 0.0)  # the snap is inelastic
+    # What lies across the axis is lost (the 1 mm off the axis is snapped away at rest).
+    assert landed.parts[0].linear_velocity == pytest.approx((0.0, 0.0, -v_c), abs=1e-9)
+    assert landed.parts[0].mode == "ONBASESLIDE"
+    inelastic = _dropped(radius_mm, 30)
+    inelastic["physics"]["snap_velocity"] = "zero"
+    at_rest = run_records(inelastic)
+    _placed_after_a_free_fall(at_rest, onto=("released", "landed_on_constraint"))
+    placed = [next(r.frame for r in run if r.parts[0].mode == "PLACED")
+              for run in (records, at_rest)]
+    assert placed[0] < placed[1]  # in sooner for the speed it kept
     analysis = SessionAnalysis()
     for r in records:
         analysis.add(r)

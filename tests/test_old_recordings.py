@@ -35,6 +35,7 @@ def test_an_old_recording_names_the_changed_defaults_and_replays_with_them():
     assert changed["landing"] == {"recorded": "rests", "now": "constraints"}
     assert changed["contact_sweep"] == {"recorded": "frame_end", "now": "path"}
     assert changed["velocities"] == {"recorded": "relative", "now": "world"}
+    assert changed["snap_velocity"] == {"recorded": "zero", "now": "along_constraint"}
     assert changed["release_velocity"] == {"recorded": "window_fit",
                                            "now": "window_fit_corners"}
     assert changed["slide_step_s"] == {"recorded": 1 / 180, "now": 1 / 60}
@@ -43,7 +44,7 @@ def test_an_old_recording_names_the_changed_defaults_and_replays_with_them():
     assert set(changed) == {"slide_integrator", "slide_onset", "slide_off", "slide_step_s",
                             "final_pose_check", "block_cut", "block_event", "flight_grace",
                             "release_velocity", "coaxial_fit", "landing", "contact_sweep",
-                            "velocities", "two_hand_max_mass_kg"}
+                            "velocities", "snap_velocity", "two_hand_max_mass_kg"}
     # analytic brings its own 1/180 s, so the step need not be set.
     again = replay(Recording(OLD), as_recorded=True)
     assert again.match, again.first_divergence
@@ -52,8 +53,8 @@ def test_an_old_recording_names_the_changed_defaults_and_replays_with_them():
                                  "final_pose_check": "frame_end", "flight_grace": "whole_base",
                                  "landing": "rests", "release_velocity": "window_fit",
                                  "slide_integrator": "analytic", "slide_off": "frame_end",
-                                 "slide_onset": "sub_step", "two_hand_max_mass_kg": 5.0,
-                                 "velocities": "relative"}
+                                 "slide_onset": "sub_step", "snap_velocity": "zero",
+                                 "two_hand_max_mass_kg": 5.0, "velocities": "relative"}
     assert again.physics_changed == {}  # restored, so no longer a changed default
 
 
@@ -68,7 +69,7 @@ def test_the_cli_says_so_beside_the_divergence(tmp_path):
     assert ("(made with other physics defaults: block_cut, block_event, coaxial_fit, "
             "contact_sweep, final_pose_check, flight_grace, landing, release_velocity, "
             "slide_integrator, slide_off, "
-            "slide_onset, slide_step_s, two_hand_max_mass_kg, velocities; "
+            "slide_onset, slide_step_s, snap_velocity, two_hand_max_mass_kg, velocities; "
             f"vade-replay {OLD} --as-recorded replays it with them)") in many.stdout
     # What it says works: the recording reproduces, bit for bit, exit 0.
     as_made = run_cli("vade-replay", str(OLD), "--as-recorded")
@@ -78,6 +79,7 @@ def test_the_cli_says_so_beside_the_divergence(tmp_path):
         "final_pose_check='frame_end', flight_grace='whole_base', landing='rests', "
         "release_velocity='window_fit', "
         "slide_integrator='analytic', slide_off='frame_end', slide_onset='sub_step', "
+        "snap_velocity='zero', "
         "two_hand_max_mass_kg=5.0, velocities='relative'): match: 241 frames")
     as_json = run_cli("vade-replay", str(OLD), "--json")
     assert json.loads(as_json.stdout)["physics_changed"]["slide_integrator"]["now"] == "analytic4"
@@ -177,7 +179,7 @@ def test_vade_goldens_check_says_a_default_changed_since_a_golden_was_recorded(t
     assert ("recorded with other physics defaults: block_cut, block_event, coaxial_fit, "
             "contact_sweep, final_pose_check, flight_grace, landing, release_velocity, "
             "slide_integrator, slide_off, "
-            "slide_onset, slide_step_s, two_hand_max_mass_kg, velocities; "
+            "slide_onset, slide_step_s, snap_velocity, two_hand_max_mass_kg, velocities; "
             f"vade-replay {tmp_path / 'shaft_slide_off.mcap'} --as-recorded replays it with "
             "them; if the change is meant, re-record with vade-goldens") in result.stdout
     # With another golden beside it that matches: a count of both at the end.

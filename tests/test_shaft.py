@@ -187,12 +187,13 @@ def _pin_in_bore(radius_mm: float, passing: str | None = None) -> dict:
     return doc
 
 
-def _placed_after_a_free_fall(records, onto: tuple[str, ...] = ("released_on_constraint",)) \
-        -> None:
+def _placed_after_a_free_fall(records, onto: tuple[str, ...] = ("released_on_constraint",),
+                              v0: float = 0.0) -> None:
     """From its snap onto the bore's mouth the pin falls freely down the vertical bore (no
-    load across it, so no friction), z = z0 - g t^2 / 2 to the round-off of nanosecond
-    times, touching nothing, and is placed on the plate. ``onto``: the causes that took it
-    from the hand onto the constraint (let go on it, or let go above it and landed on it)."""
+    load across it, so no friction), z = z0 - v0 t - g t^2 / 2 to the round-off of
+    nanosecond times, touching nothing, and is placed on the plate. ``onto``: the causes
+    that took it from the hand onto the constraint (let go on it, or let go above it and
+    landed on it); ``v0``: the speed down the bore it kept at the snap."""
     causes = [e.cause for r in records for e in r.events if e.kind == "ModeChanged"]
     assert causes == ["grabbed", *onto, "reached_final_pose"]
     assert "blocked_by_base" not in [e.cause for r in records for e in r.events]
@@ -206,7 +207,8 @@ def _placed_after_a_free_fall(records, onto: tuple[str, ...] = ("released_on_con
             assert pin.position[2] == pytest.approx(0.95 + 0.025, abs=1e-12)
             return
         t = r.time_ns * 1e-9 - t0
-        assert pin.position[2] == pytest.approx(z0 - 0.5 * 9.81 * t * t, abs=1e-9)
+        assert pin.position[2] == pytest.approx(z0 - v0 * t - 0.5 * 9.81 * t * t, abs=1e-9)
+        assert pin.linear_velocity[2] == pytest.approx(-v0 - 9.81 * t, abs=1e-9)
     raise AssertionError("never placed")
 
 

@@ -1433,7 +1433,8 @@ _BEFORE_THE_KEY = {"slide_onset": "sub_step", "slide_off": "frame_end",
                    "final_pose_check": "frame_end", "block_cut": "both",
                    "block_event": "always", "flight_grace": "whole_base",
                    "coaxial_fit": "faces", "landing": "rests",
-                   "contact_sweep": "frame_end", "velocities": "relative"}
+                   "contact_sweep": "frame_end", "velocities": "relative",
+                   "snap_velocity": "zero"}
 
 
 def _step_in_effect(recorded: dict, bound: str, before: float):

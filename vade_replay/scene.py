@@ -74,6 +74,7 @@ COAXIAL_FITS = ("radial", "faces")
 LANDINGS = ("constraints", "rests")
 CONTACT_SWEEPS = ("path", "frame_end")
 VELOCITIES = ("world", "relative")
+SNAP_VELOCITIES = ("along_constraint", "zero")
 RELEASE_VELOCITIES = ("window_fit_corners", "window_fit_stops", "window_fit", "two_frame")
 
 
@@ -158,6 +159,12 @@ class Physics:
     # schema says; relative: relative to the base (in world axes; zero for the base and
     # for parts at rest on it or placed), as before this key.
     velocities: str = "world"
+    # along_constraint: a part that snaps onto a constraint (let go on it, or landing on
+    # it in flight) keeps its velocity relative to the base along what the constraint
+    # allows (the slide directions, and the spin about an axis), losing the rest, as a
+    # plastic contact; zero: it starts at rest on the constraint, as in the paper and as
+    # before this key (a pin dropped into its bore stopped at the snap).
+    snap_velocity: str = "along_constraint"
     turn_integrator: str = "yoshida6"        # paper: eq. 11 once per frame
     # Longest sub-steps on the base, read through turn_step_s / slide_step_s. None: the
     # default below, or onbase_max_step_s where a session sets that (for both).
@@ -182,6 +189,7 @@ class Physics:
             ("landing", self.landing, LANDINGS),
             ("contact_sweep", self.contact_sweep, CONTACT_SWEEPS),
             ("velocities", self.velocities, VELOCITIES),
+            ("snap_velocity", self.snap_velocity, SNAP_VELOCITIES),
             ("turn_integrator", self.turn_integrator, TURN_INTEGRATORS))
         for name, value, allowed in choices:
             if value not in allowed:
@@ -222,7 +230,9 @@ PAPER_DEFAULTS = {"free_rotation": "constant_omega", "release_velocity": "two_fr
                   "final_pose_check": "frame_end", "block_cut": "both",
                   # The paper recognises constraints on release only, and checks a move on
                   # the base at the frame's end.
-                  "landing": "rests", "contact_sweep": "frame_end"}
+                  "landing": "rests", "contact_sweep": "frame_end",
+                  # The paper's part starts at rest on the constraint it is let go on.
+                  "snap_velocity": "zero"}
 LENGTH_FIELDS = ("grab_radius", "contact_tolerance")
 
 

@@ -638,9 +638,12 @@ def _fly(f: _Frame, index: int) -> None:
                                     f.scene.base.name, t_c))  # type: ignore[union-attr]
         base_at_contact = base.at_time(t_c)  # type: ignore[union-attr]
         base_from_part = base_at_contact.inverse().compose(pose_c)
-        if body.assembly is not None and physics.landing == "constraints" \
-                and _onto_base(f, index, base_from_part, None):
-            return  # came onto a constraint of its own, or its final pose
+        if body.assembly is not None and physics.landing == "constraints":
+            at_contact, _, v_c, _ = _flight_pose(f, body, start, t_c)
+            w_c = free.omega_world(at_contact, model=physics.free_rotation,
+                                   moments=body.principal_moments)
+            if _onto_base(f, index, base_from_part, None, v_c, w_c):
+                return  # came onto a constraint of its own, or its final pose
         normal, on_face = f.collision.base_contact(part.name, base_from_part, grace)
         # Leaving the base, it lands only on a face: the edge of another surface flush
         # with the one it leaves along (a seam) gives directions that would hold it up.
@@ -866,18 +869,20 @@ def _release_on_base(f: _Frame, index: int, hand: str) -> bool:
     """Release onto the base: at the final pose, or onto the first recognised constraint."""
     part = f.parts[index]
     base_from_part = f.base_pose.inverse().compose(part.pose)  # type: ignore[union-attr]
-    return _onto_base(f, index, base_from_part, hand)
+    return _onto_base(f, index, base_from_part, hand, part.linear_velocity,
+                      part.angular_velocity)
 
 
-def _onto_base(f: _Frame, index: int, base_from_part: sp.Pose, hand: str | None) -> bool:
+def _onto_base(f: _Frame, index: int, base_from_part: sp.Pose, hand: str | None,
+               v: sp.Vec3, w: sp.Vec3) -> bool:
     """The part at ``base_from_part`` goes onto the base: at its final pose it is placed,
     on the first constraint recognised there it goes onto that; else False. Let go by
     ``hand`` (a release: ``PartReleased`` and the ``released_`` causes), or, with ``hand``
-    None, come there in flight (physics ``landing: constraints``; ``landed_`` causes)."""
+    None, come there in flight (physics ``landing: constraints``; ``landed_`` causes).
+    ``v`` and ``w`` are its world velocities there (``physics.snap_velocity``)."""
     part = f.parts[index]
     body = f.scene.parts[index]
     assembly: cn.Assembly = body.assembly  # type: ignore[assignment]
-    v, w = part.linear_velocity, part.angular_velocity
     placed = Cause.RELEASED_AT_FINAL_POSE if hand is not None else Cause.LANDED_AT_FINAL_POSE
     onto = Cause.RELEASED_ON_BASE if hand is not None else Cause.LANDED_ON_CONSTRAINT
     if cn.at_final_pose(assembly, base_from_part):
@@ -917,17 +922,74 @@ def _onto_base(f: _Frame, index: int, base_from_part: sp.Pose, hand: str | None)
         lifted, slides, turns = _drive(f, body, mate, motion)
         if lifted:
             continue  # gravity pulls it off this plane: not a support
-        # The snap is an inelastic contact: the part starts at rest relative to the base.
-        mode = ONBASESLIDE if (slides or turns) else ONBASESTATIC
         pose = f.base_pose.compose(snapped)  # type: ignore[union-attr]
+        v_on, w_on = sp.ZERO3, sp.ZERO3
+        if f.scene.physics.snap_velocity == "along_constraint":
+            motion = _kept_rates(f, body, mate, motion, v, w, slides, turns)
+            if motion.angle_rate != 0.0 or any(r != 0.0 for r in motion.slide_rate):
+                slides = True  # it moves on along the constraint from the snap
+                v_rel, w_rel = _relative_rates(body, mate, motion, motion.slide_rate, 0.0,
+                                               motion.angle_rate)
+                q = f.base_pose.rotation  # type: ignore[union-attr]
+                v_on, w_on = sp.quat_rotate(q, v_rel), sp.quat_rotate(q, w_rel)
+        # (``zero``: the snap is an inelastic contact, the part at rest relative to the base.)
+        mode = ONBASESLIDE if (slides or turns) else ONBASESTATIC
         if hand is not None:
             f.events.append(PartReleased(f.inputs.frame, part.name, onto.value, hand, v, w))
         else:
             f.landed = (*f.landed, index)
-        f.change_mode(index, PartState(part.name, mode, pose, sp.ZERO3, sp.ZERO3, motion),
-                      onto)
+        f.change_mode(index, PartState(part.name, mode, pose, v_on, w_on, motion), onto)
         return True
     return False
+
+
+def _kept_rates(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, v: sp.Vec3,
+                w: sp.Vec3, slides: bool, turns: bool) -> OnBase:
+    """``m`` with the rates of the world velocities ``v`` (of the centre of mass) and ``w``
+    relative to the base that the constraint allows: the velocity along each slide
+    direction and the spin about an axis. The rest (into the base, across the shaft, a
+    spin the constraint does not allow) is lost at the snap, as in a plastic contact.
+
+    Where friction holds the part at rest (``slides``, ``turns`` False: ``_drive``), a
+    kept motion that friction or gravity would end within the contact tolerance is rest:
+    the simulator resolves no finer motion, and a hand let go at rest (its fitted velocity
+    round-off, or a tracker's noise) then leaves the part resting, not sliding for a
+    frame. A slide stops within ``v^2 / (2 (f_d N - |g_t|))``; a spin within the least of
+    ``|w| J / f_r`` (viscous friction) and ``|w| / sqrt(m |g_perp| |r| / J)`` (the swing
+    about where gravity holds it), at the part's farthest point from the axis."""
+    cm = m.base_from_snap.apply(body.center_of_mass)
+    v_base, w_base = _base_motion(f, cm)
+    q_inv = sp.quat_conj(f.base_pose.rotation)  # type: ignore[union-attr]
+    v_rel = sp.quat_rotate(q_inv, sp.sub(v, v_base))
+    w_rel = sp.quat_rotate(q_inv, sp.sub(w, w_base))
+    rates = tuple(sp.dot(v_rel, e) for e in mate.slide_dirs)
+    spin = sp.dot(w_rel, mate.base_dirs[0]) if mate.turn else 0.0
+    if not (_finite(rates) and math.isfinite(spin)):
+        return m
+    physics = f.scene.physics
+    tol = physics.contact_tolerance
+    if rates and not slides:
+        g = _to_base(f, physics.gravity_slide)
+        n_load, _ = onbase.normal_load(mate.kind, mate.base_dirs, _axis(mate), g)
+        g_t = math.sqrt(sum(x * x for x in onbase.tangential(mate.slide_dirs, g)))
+        stop = mate.dynamic_friction * n_load - g_t
+        speed2 = sum(r * r for r in rates)
+        if stop > 0.0 and speed2 <= 2.0 * stop * tol:
+            rates = tuple(0.0 for _ in rates)
+    if spin != 0.0 and not turns:
+        inertia = mate.inertia_about_axis
+        angle = math.inf
+        if mate.rotational_friction > 0.0:
+            angle = abs(spin) * inertia / mate.rotational_friction
+        u = mate.base_dirs[0]
+        g = _to_base(f, physics.gravity_rotation)
+        g_perp = sp.norm(sp.sub(g, sp.scale(u, sp.dot(g, u))))
+        k = body.mass_kg * g_perp * sp.norm(m.cm_offset) / inertia
+        if k > 0.0:
+            angle = min(angle, abs(spin) / math.sqrt(k))
+        if angle * (body.radius_about_cm + sp.norm(m.cm_offset)) <= tol:
+            spin = 0.0
+    return replace(m, slide_rate=rates, angle_rate=spin)
 
 
 def _lands_clear(f: _Frame, body: Body, mate: cn.Mate, m: OnBase) -> bool:
