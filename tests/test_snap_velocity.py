@@ -225,3 +225,111 @@ def test_the_paper_model_snaps_at_rest():
     doc = _block_let_go_moving(0.5)
     doc["physics"] = {"model": "paper"}
     assert make_session(doc).build_scene().physics.snap_velocity == "zero"
+
+
+def _block_on_a_slope(v_downhill: float, deg: float, snap: str | None = None) -> dict:
+    """A review's scene: the plate tilted ``deg`` about x in the left hand (its +y edge up),
+    default friction (static 0.3, dynamic 0.2), the block let go 0.5 mm above it while the
+    hand moves ``v_downhill`` down the slope."""
+    th = math.radians(deg)
+    down = (0.0, -math.cos(th), -math.sin(th))
+    on = (0.0, 0.2 - 0.0305 * math.sin(th), 0.95 + 0.0305 * math.cos(th))
+
+    def at(t: float) -> list[float]:
+        return [on[i] + v_downhill * down[i] * (t - 1.0) for i in range(3)]
+    doc = _block_let_go_moving(0.0, snap=snap)
+    del doc["parts"][0]["assembly"]["constraints"][0]["friction"]
+    doc["tracker"]["devices"]["left_hand"] = [
+        {"t": 0, "position": [0.0, 0.2, 0.95], "euler_deg": [deg, 0, 0], "grip": True}]
+    doc["tracker"]["devices"]["right_hand"] = [
+        {"t": 0.0, "position": [0.3, -0.1, 0.76], "grip": False},
+        {"t": 0.2, "grip": True},
+        {"t": 0.6, "position": at(0.6), "euler_deg": [deg, 0, 0]},
+        {"t": 1.0, "position": at(1.0), "euler_deg": [deg, 0, 0], "grip": False},
+        {"t": 1.2, "position": at(1.2), "euler_deg": [deg, 0, 0]},
+        {"t": 1.4, "position": [0.3, 0.0, 1.2]}]
+    return doc
+
+
+@pytest.mark.parametrize("v_downhill", [0.0, 0.003, -0.003])
+def test_a_block_let_go_at_rest_on_a_slope_static_friction_alone_holds_stays(v_downhill):
+    """A review: on a slope of 14 degrees static friction (0.3, 16.7 degrees) holds the
+    block, dynamic (0.2, 11.3) would not stop a slide. Let go by a hand at rest (its fit's
+    round-off, 1e-14 m/s, either way along the slope) or at 3 mm/s, it rests: a motion of
+    under the contact tolerance a frame is inside the band of stiction (Karnopp's), and the
+    frames are those of ``zero``. (Before, round-off pointing downhill slid it off the
+    plate.) At 2 cm/s down the slope it slides, and nothing stops it: dynamic friction
+    cannot, as the closed form's acceleration g (sin - f_d cos) > 0 says."""
+    ours = run_records(_block_on_a_slope(v_downhill, 14.0))
+    paper = run_records(_block_on_a_slope(v_downhill, 14.0, snap="zero"))
+    assert _causes(ours) == ["grabbed", "released_on_constraint"]
+    assert [(r.parts, r.events) for r in ours] == [(r.parts, r.events) for r in paper]
+    sliding = run_records(_block_on_a_slope(0.02, 14.0))
+    assert _causes(sliding)[:3] == ["grabbed", "released_on_constraint", "slid_off_base"]
+    th = math.radians(14.0)
+    assert G * (math.sin(th) - 0.2 * math.cos(th)) > 0.0
+
+
+def test_a_hanging_gear_let_go_by_a_hand_moving_across_its_shaft_swings(recordings_dir):
+    """A review: the gear of ``gear_pendulum`` (a weight on its rim, so its centre of mass
+    lies off the shaft) let go hanging at rest while the hand moves across the shaft at
+    0.3 m/s without turning. The shaft's reactions pass through it, so the angular momentum
+    about it is kept: it turns at m (r x v).u / J, r from the shaft to the centre of mass,
+    to 1e-9 relative; under ``zero`` it stays at rest."""
+    import json
+    doc = _wheel_spun_onto_its_shaft()
+    gear = json.loads((recordings_dir / "gear_pendulum.json").read_text())["parts"][0]
+    doc["parts"][0]["shape"] = gear["shape"]
+    half = math.sqrt(0.5)
+
+    def at(t: float) -> list[float]:
+        return [0.12, 0.2 + 0.3 * (t - 1.0), 1.0]
+    doc["tracker"]["devices"]["right_hand"] = [
+        {"t": 0.0, "position": [0.3, -0.1, 0.745], "grip": False}, {"t": 0.2, "grip": True},
+        {"t": 0.7, "position": at(0.7), "xyzw": [0, half, 0, half]},
+        {"t": 1.0, "position": at(1.0), "xyzw": [0, half, 0, half], "grip": False},
+        {"t": 1.2, "position": at(1.2), "xyzw": [0, half, 0, half]},
+        {"t": 1.5, "position": [0.3, 0.0, 1.1]}]
+    records = run_records(doc)
+    frame, event = _release(records)
+    body = make_session(doc).build_scene().parts[0]
+    mate = body.assembly.mates[0]
+    # The centre of mass where the gear was let go, from the shaft (y 0.2, z 1.0) to it.
+    held = records[frame.frame - 1].parts[0]
+    from vade_replay import spatial as sp
+    cm = sp.Pose(held.position, held.rotation_xyzw).apply(body.center_of_mass)
+    r = (0.0, cm[1] - 0.2, cm[2] - 1.0)
+    v = event.linear_velocity
+    assert v == pytest.approx((0.0, 0.3, 0.0), abs=1e-9)
+    assert event.angular_velocity == pytest.approx((0.0, 0.0, 0.0), abs=1e-9)
+    expected = body.mass_kg * sp.cross(r, v)[0] / mate.inertia_about_axis
+    assert abs(expected) > 0.1  # a swing worth the name
+    assert frame.parts[0].mode == "ONBASESLIDE"
+    assert frame.parts[0].angular_velocity[0] == pytest.approx(expected, rel=1e-9)
+    doc["physics"]["snap_velocity"] = "zero"
+    assert _release(run_records(doc))[0].parts[0].angular_velocity == (0.0, 0.0, 0.0)
+
+
+def test_a_wheel_held_by_static_friction_let_go_by_a_noisy_hand_rests():
+    """A review: a balanced wheel with a holding torque (static friction about the shaft)
+    and no rotational friction, let go by a still hand read with tracker noise (a spin of
+    0.003-0.02 rad/s). Nothing would slow a kept spin but the holding torque at a stop that
+    never comes, so it turned for good; its turn of under the contact tolerance a frame is
+    rest now, the frames those of ``zero``."""
+    for seed in range(3):
+        runs = []
+        for snap in ("along_constraint", "zero"):
+            doc = _wheel_spun_onto_its_shaft(snap)
+            keys = doc["tracker"]["devices"]["right_hand"]
+            for key in keys:  # the hand does not turn the wheel
+                if "xyzw" in key:
+                    key["xyzw"] = [0.0, math.sqrt(0.5), 0.0, math.sqrt(0.5)]
+            friction = doc["parts"][0]["assembly"]["constraints"][0]["friction"]
+            friction.update(rotational=0.0, holding_torque=0.01)
+            doc["tracker"]["noise"] = {"seed": seed, "position_std": 0.0001,
+                                       "rotation_std_deg": 0.02}
+            runs.append(run_records(doc))
+        frame, event = _release(runs[0])
+        assert abs(event.angular_velocity[0]) > 1e-3  # the noise's spin, let go
+        assert frame.parts[0].mode == "ONBASESTATIC"
+        assert [(r.parts, r.events) for r in runs[0]] == [(r.parts, r.events) for r in runs[1]]

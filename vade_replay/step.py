@@ -945,38 +945,53 @@ def _onto_base(f: _Frame, index: int, base_from_part: sp.Pose, hand: str | None,
 
 def _kept_rates(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, v: sp.Vec3,
                 w: sp.Vec3, slides: bool, turns: bool) -> OnBase:
-    """``m`` with the rates of the world velocities ``v`` (of the centre of mass) and ``w``
-    relative to the base that the constraint allows: the velocity along each slide
-    direction and the spin about an axis. The rest (into the base, across the shaft, a
-    spin the constraint does not allow) is lost at the snap, as in a plastic contact.
+    """``m`` with the rates that the world velocities ``v`` (of the centre of mass) and
+    ``w``, relative to the base, keep on the constraint, as in a plastic contact with a
+    frictionless feature: the momentum along each slide direction (the velocity's
+    component) and, on an axis, the angular momentum about the shaft, ``u.(I w) +
+    m (r x v).u``, over ``J`` (the feature's reactions pass through the shaft, so they have
+    no moment about it: a hanging gear let go by a hand moving across the shaft swings).
+    The rest (into the base, across the shaft, a spin the constraint does not allow) is
+    lost at the snap.
 
     Where friction holds the part at rest (``slides``, ``turns`` False: ``_drive``), a
-    kept motion that friction or gravity would end within the contact tolerance is rest:
-    the simulator resolves no finer motion, and a hand let go at rest (its fitted velocity
-    round-off, or a tracker's noise) then leaves the part resting, not sliding for a
-    frame. A slide stops within ``v^2 / (2 (f_d N - |g_t|))``; a spin within the least of
-    ``|w| J / f_r`` (viscous friction) and ``|w| / sqrt(m |g_perp| |r| / J)`` (the swing
-    about where gravity holds it), at the part's farthest point from the axis."""
+    kept motion finer than the simulator resolves is rest: one that would carry the part
+    no farther than the contact tolerance in the frame, as Karnopp's band of stiction has
+    it, or before friction stops it (a slide within ``v^2 / (2 (f_d N - |g_t|))``, a spin
+    within the least of ``|w| J / f_r`` and its swing about where gravity holds it, at the
+    part's farthest point from the axis). So a hand let go at rest (its fitted velocity's
+    round-off, or a tracker's noise) leaves the part resting, on a slope held only by
+    static friction too, not sliding for a frame or off the plate."""
     cm = m.base_from_snap.apply(body.center_of_mass)
     v_base, w_base = _base_motion(f, cm)
     q_inv = sp.quat_conj(f.base_pose.rotation)  # type: ignore[union-attr]
     v_rel = sp.quat_rotate(q_inv, sp.sub(v, v_base))
     w_rel = sp.quat_rotate(q_inv, sp.sub(w, w_base))
     rates = tuple(sp.dot(v_rel, e) for e in mate.slide_dirs)
-    spin = sp.dot(w_rel, mate.base_dirs[0]) if mate.turn else 0.0
+    spin = 0.0
+    if mate.turn:
+        u = mate.base_dirs[0]
+        to_part = sp.quat_conj(m.base_from_snap.rotation)
+        u_p = sp.quat_rotate(to_part, u)
+        w_p = sp.quat_rotate(to_part, w_rel)
+        momentum = sp.dot(u_p, sp.mat_vec(body.inertia_cm, w_p)) \
+            + body.mass_kg * sp.dot(sp.cross(m.cm_offset, v_rel), u)
+        spin = momentum / mate.inertia_about_axis
     if not (_finite(rates) and math.isfinite(spin)):
         return m
     physics = f.scene.physics
     tol = physics.contact_tolerance
+    dt = f.dt_s
     if rates and not slides:
         g = _to_base(f, physics.gravity_slide)
         n_load, _ = onbase.normal_load(mate.kind, mate.base_dirs, _axis(mate), g)
         g_t = math.sqrt(sum(x * x for x in onbase.tangential(mate.slide_dirs, g)))
         stop = mate.dynamic_friction * n_load - g_t
         speed2 = sum(r * r for r in rates)
-        if stop > 0.0 and speed2 <= 2.0 * stop * tol:
+        if math.sqrt(speed2) * dt <= tol or (stop > 0.0 and speed2 <= 2.0 * stop * tol):
             rates = tuple(0.0 for _ in rates)
     if spin != 0.0 and not turns:
+        reach = body.radius_about_cm + sp.norm(m.cm_offset)
         inertia = mate.inertia_about_axis
         angle = math.inf
         if mate.rotational_friction > 0.0:
@@ -987,7 +1002,7 @@ def _kept_rates(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, v: sp.Vec3,
         k = body.mass_kg * g_perp * sp.norm(m.cm_offset) / inertia
         if k > 0.0:
             angle = min(angle, abs(spin) / math.sqrt(k))
-        if angle * (body.radius_about_cm + sp.norm(m.cm_offset)) <= tol:
+        if abs(spin) * reach * dt <= tol or angle * reach <= tol:
             spin = 0.0
     return replace(m, slide_rate=rates, angle_rate=spin)
 
