@@ -161,9 +161,11 @@ class Physics:
     velocities: str = "world"
     # along_constraint: a part that snaps onto a constraint (let go on it, or landing on
     # it in flight) keeps its velocity relative to the base along what the constraint
-    # allows (the slide directions, and the spin about an axis), losing the rest, as a
-    # plastic contact; zero: it starts at rest on the constraint, as in the paper and as
-    # before this key (a pin dropped into its bore stopped at the snap).
+    # allows (the slide directions, and on an axis its angular momentum about it), losing
+    # the rest, as a plastic contact; a kept motion finer than the contact tolerance where
+    # friction holds the part is rest (``step._kept_rates``); zero: it starts at rest on
+    # the constraint, as in the paper and as before this key (a pin dropped into its bore
+    # stopped at the snap).
     snap_velocity: str = "along_constraint"
     turn_integrator: str = "yoshida6"        # paper: eq. 11 once per frame
     # Longest sub-steps on the base, read through turn_step_s / slide_step_s. None: the

@@ -638,11 +638,12 @@ def _fly(f: _Frame, index: int) -> None:
                                     f.scene.base.name, t_c))  # type: ignore[union-attr]
         base_at_contact = base.at_time(t_c)  # type: ignore[union-attr]
         base_from_part = base_at_contact.inverse().compose(pose_c)
+        # The flight's state at the contact: what a snap keeps and a graze flies on with.
+        flown = None
         if body.assembly is not None and physics.landing == "constraints":
-            at_contact, _, v_c, _ = _flight_pose(f, body, start, t_c)
-            w_c = free.omega_world(at_contact, model=physics.free_rotation,
-                                   moments=body.principal_moments)
-            if _onto_base(f, index, base_from_part, None, v_c, w_c):
+            flown = _flight_pose(f, body, start, t_c)
+            if _onto_base(f, index, base_from_part, None, flown[2], free.omega_world(
+                    flown[0], model=physics.free_rotation, moments=body.principal_moments)):
                 return  # came onto a constraint of its own, or its final pose
         normal, on_face = f.collision.base_contact(part.name, base_from_part, grace)
         # Leaving the base, it lands only on a face: the edge of another surface flush
@@ -653,7 +654,8 @@ def _fly(f: _Frame, index: int) -> None:
             return
         # It hit a face that cannot hold it (the underside, a wall): it loses its speed into
         # the base and flies on from the contact, grazing the base until they separate.
-        contact_flight, cm_c, v_c, _ = _flight_pose(f, body, start, t_c)
+        contact_flight, cm_c, v_c, _ = flown if flown is not None \
+            else _flight_pose(f, body, start, t_c)
         v_c = _without_push_into_base(f, normal, v_c)
         w_c = free.omega_world(contact_flight, model=physics.free_rotation,
                                moments=body.principal_moments)
