@@ -971,8 +971,8 @@ def _kept_rates(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, v: sp.Vec3,
     w_rel = sp.quat_rotate(q_inv, sp.sub(w, w_base))
     rates = tuple(sp.dot(v_rel, e) for e in mate.slide_dirs)
     spin = 0.0
+    u = mate.base_dirs[0]  # the shaft, where it turns
     if mate.turn:
-        u = mate.base_dirs[0]
         to_part = sp.quat_conj(m.base_from_snap.rotation)
         u_p = sp.quat_rotate(to_part, u)
         w_p = sp.quat_rotate(to_part, w_rel)
@@ -998,9 +998,9 @@ def _kept_rates(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, v: sp.Vec3,
         angle = math.inf
         if mate.rotational_friction > 0.0:
             angle = abs(spin) * inertia / mate.rotational_friction
-        u = mate.base_dirs[0]
-        g = _to_base(f, physics.gravity_rotation)
-        g_perp = sp.norm(sp.sub(g, sp.scale(u, sp.dot(g, u))))
+        # Gravity across the shaft, as it loads a shaft (``normal_load``).
+        g_perp, _ = onbase.normal_load(mate.kind, mate.base_dirs, u,
+                                       _to_base(f, physics.gravity_rotation))
         k = body.mass_kg * g_perp * sp.norm(m.cm_offset) / inertia
         if k > 0.0:
             angle = min(angle, abs(spin) / math.sqrt(k))
