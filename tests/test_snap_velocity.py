@@ -333,3 +333,77 @@ def test_a_wheel_held_by_static_friction_let_go_by_a_noisy_hand_rests():
         assert abs(event.angular_velocity[0]) > 1e-3  # the noise's spin, let go
         assert frame.parts[0].mode == "ONBASESTATIC"
         assert [(r.parts, r.events) for r in runs[0]] == [(r.parts, r.events) for r in runs[1]]
+
+
+@pytest.mark.parametrize("yaw_deg", [0.0, 17.0, 30.0, 45.0])
+def test_a_block_let_go_into_a_wall_stops_at_the_wall_in_the_frame_it_meets_it(yaw_deg):
+    """A review (``wall2``): a block let go at 3 m/s straight at the wall of a plate turned
+    30 degrees about the vertical kept a round-off of its speed along the wall after the
+    block (1e-30 m/s: a motion into the obstacle less its projection onto the same
+    direction), slid on for a frame, and logged ``held_by_friction`` after the block. The
+    block is the stop: in the frame of the contact it is ONBASESTATIC, blocked by the base,
+    at any turn of the plate, and nothing follows."""
+    doc = make_session_doc_wall(3.0, yaw_deg)
+    records = run_records(doc)
+    contacts = [r.frame for r in records for e in r.events if e.kind == "ContactMade"]
+    assert len(contacts) == 1
+    hit = next(r for r in records if r.frame == contacts[0])
+    assert [(e.kind, e.cause) for e in hit.events] == [("ContactMade", "blocked_by_base"),
+                                                      ("ModeChanged", "blocked_by_base")]
+    assert hit.parts[0].mode == "ONBASESTATIC"
+    assert _causes(records) == ["grabbed", "released_on_constraint", "blocked_by_base"]
+    # Against the wall: its inner face 0.13 m from the plate's centre, the block 0.025 m
+    # half wide, within the contact tolerance.
+    c, s = math.cos(math.radians(yaw_deg)), math.sin(math.radians(yaw_deg))
+    x, y, _ = records[-1].parts[0].position
+    along = -s * (x - 0.0) + c * (y - 0.2)
+    assert 0.105 - TOL <= along <= 0.105
+
+
+def make_session_doc_wall(speed: float, yaw_deg: float) -> dict:
+    """``plane_block_wall``'s plate (a wall along its far edge) held still in the left hand,
+    turned ``yaw_deg`` about the vertical; the block carried at ``speed`` straight at the
+    wall and let go 5.5 cm short of it."""
+    c, s = math.cos(math.radians(yaw_deg)), math.sin(math.radians(yaw_deg))
+
+    def world(x: float, y: float, z: float) -> list[float]:
+        return [c * x - s * y, 0.2 + s * x + c * y, 0.95 + z]
+    y0 = 0.05 - speed * 0.15
+    right = [{"t": 0.0, "position": [0.3, -0.1, 0.76], "grip": False},
+             {"t": 0.2, "grip": True},
+             {"t": 0.6, "position": world(0.0, y0, 0.032), "euler_deg": [0, 0, yaw_deg]},
+             {"t": 0.75, "position": world(0.0, 0.05, 0.032), "grip": False},
+             {"t": 0.9, "position": world(0.0, y0 + speed * 0.3, 0.032)}]
+    return {"format": "vade-session/1", "name": "wall", "units": "m",
+            "base": {"name": "plate_with_wall", "shape": {"type": "compound", "children": [
+                {"type": "box", "size": [0.3, 0.3, 0.02]},
+                {"type": "box", "size": [0.3, 0.02, 0.06],
+                 "pose": {"position": [0.0, 0.14, 0.04]}}]}},
+            "parts": [{"name": "block", "density": 2700,
+                       "shape": {"type": "box", "size": [0.05, 0.05, 0.04]},
+                       "pose": {"position": [0.3, -0.1, 0.76]},
+                       "assembly": {"constraints": [{
+                           "type": "plane", "name": "bottom_on_top",
+                           "part": {"point": [0, 0, -0.02], "normal": [0, 0, -1]},
+                           "base": {"point": [0, 0, 0.01], "normal": [0, 0, 1]},
+                           "friction": {"static": 0.4, "dynamic": MU_D}}]}}],
+            "environment": [table()],
+            "tracker": {"rate_hz": 60, "duration_s": 1.2, "devices": {
+                "left_hand": [{"t": 0, "position": [0.0, 0.2, 0.95],
+                               "euler_deg": [0, 0, yaw_deg], "grip": True}],
+                "right_hand": right}}}
+
+
+@pytest.mark.parametrize("across, kept", [(3e-16, False), (3e-13, True), (1e-6, True)])
+def test_a_block_keeps_what_is_left_of_its_rate_beyond_round_off(across, kept):
+    """``_stop_at_block`` takes the rate into the obstacle off; what is left is kept unless
+    it is within 16 ulps of the speed (the projection's round-off): 3e-16 m/s across a 3 m/s
+    motion along x is dropped, 3e-13 m/s and 1 um/s are kept as they were."""
+    from vade_replay import spatial as sp
+    from vade_replay.state import OnBase
+    from vade_replay.step import _stop_at_block
+    old = OnBase(0, sp.IDENTITY, (0.0, 0.0), (3.0, across))
+    new = old.moved((0.05, 0.0), (3.0, across), 0.0, 0.0)
+    stopped = _stop_at_block(new, old, (0.05, 0.0), 0.0, True, False)
+    assert stopped.blocked_slide == (1.0, 0.0)
+    assert stopped.slide_rate == ((0.0, across) if kept else (0.0, 0.0))
