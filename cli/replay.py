@@ -15,6 +15,7 @@ from typing import Iterator, TextIO
 from vade_replay.errors import ConfigError
 from vade_replay.recording import Recording, ensure_writable
 from vade_replay.replay import (ANALYSIS_COLUMNS, analysis_rows, apply_overrides,
+                                describe_departure,
                                 miss_line, replay)
 from vade_replay.tables import FRAME_TABLES, STDOUT, FrameTables, TableError, TableFile
 
@@ -519,6 +520,8 @@ def _verdict(summary, overrides: dict[str, str], *, short: bool = False,
             text += (f" (made with other physics defaults: {', '.join(summary.physics_changed)};"
                      f" vade-replay {path} --as-recorded replays it with them)" if short
                      else "\n" + _physics_note(summary.physics_changed, path))
+        if not overrides:
+            text += _departure_text(summary, short, since=True)
     if overrides:
         changes = ", ".join(f"{k}={v}" for k, v in sorted(overrides.items()))
         text = f"what-if ({changes}): " + (
@@ -543,6 +546,8 @@ def _verdict(summary, overrides: dict[str, str], *, short: bool = False,
                     if len(changes) > 3 else "")) if changes else "unchanged")
         if summary.physics_changed and not summary.match and not short:
             text += "\n" + _physics_note(summary.physics_changed, path, what_if=True)
+        if not summary.match:
+            text += _departure_text(summary, short)
         changes = getattr(summary, "analysis_changes", None)
         if changes is not None and not short:
             text += ("\nanalysis: " + "; ".join(changes)) if changes \
@@ -555,6 +560,23 @@ def _verdict(summary, overrides: dict[str, str], *, short: bool = False,
         for miss in getattr(summary, "release_misses", []):
             text += "\n" + miss_line(miss)
     return text
+
+
+def _departure_text(summary, short: bool, *, since: bool = False) -> str:
+    """How far the parts went from the recording's (``RunSummary.largest_departure``): each
+    part's largest, on a line of its own, or the largest of all on a study's line; whether
+    the change is round-off or a part somewhere else."""
+    largest = getattr(summary, "largest_departure", None)
+    if not largest:
+        return ""
+    when = " since" if since else ""
+    if not short:
+        return f"\nlargest departure{when}: " + describe_departure(largest)
+    name, far = max(largest.items(), key=lambda item: (item[1]["distance_m"],
+                                                        item[1]["angle_rad"]))
+    return (f"; largest departure{when} {far['distance_m']:.3g} m, {far['angle_rad']:.3g} rad "
+            f"({name})" if far["distance_m"] or far["angle_rad"] else
+            f"; no part departed{when}")
 
 
 def _physics_note(changes: dict, path: str, *, what_if: bool = False) -> str:

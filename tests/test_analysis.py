@@ -350,7 +350,7 @@ def test_a_what_if_on_a_recording_it_cannot_fully_read_goes_on_without_the_compa
     assert not replay(Recording(bad)).match
     summary = replay(Recording(bad), overrides={"physics.gravity_scale_free": "0.25"}).to_dict()
     assert summary["frames"] == 151 and "analysis_changes" not in summary
-    assert any(w.startswith("no comparison with the recording's analysis: its frame 60")
+    assert any(w.startswith("no comparison with the recording's analysis or poses: its frame 60")
                for w in summary["warnings"])
 
 
@@ -503,4 +503,104 @@ def test_tables_end_their_lines_with_a_newline_alone(tmp_path):
         lines = data.decode().split("\n")[:-1]
         width = len(lines[0].split(","))
         assert len(lines) > 1 and all(line.count(",") + 1 >= width for line in lines)
-        assert lines[0].rsplit(",", 1)[1] in ("release_misses_landed", "wz"), option
+        assert lines[0].rsplit(",", 1)[1] in ("departure_rad", "wz"), option
+
+
+def _snapshot(name: str, position, angle_about_z: float = 0.0):
+    import math as m
+    from vade_replay.frames import PartSnapshot
+    half = 0.5 * angle_about_z
+    return PartSnapshot(name, "INSPACE", position, (0.0, 0.0, m.sin(half), m.cos(half)),
+                        (0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+
+
+def test_the_departure_is_each_parts_largest_distance_and_angle_with_their_frames():
+    """``Departure`` against hand-made frames: a 3-4-5 offset is 5, a turn of 0.3 rad
+    about z against none is 0.3 rad, and the largest of each is kept with its frame."""
+    from vade_replay.frames import FrameRecord, TrackerFrame
+    from vade_replay.replay import Departure, describe_departure
+    d = Departure()
+    for frame, (dx, angle) in enumerate([(0.0, 0.0), (5.0, 0.1), (1.0, 0.3), (2.0, 0.0)]):
+        inputs = TrackerFrame(frame, frame * 10**9 // 60, ())
+        recorded = FrameRecord(inputs, None, (_snapshot("a", (1.0, 2.0, 3.0)),
+                                              _snapshot("b", (0.0, 0.0, 0.0))))
+        ours = FrameRecord(inputs, None, (_snapshot("a", (1.0 + 0.6 * dx, 2.0 + 0.8 * dx, 3.0),
+                                                    angle),
+                                          _snapshot("b", (0.0, 0.0, 0.0))))
+        d.add(recorded, ours)
+    got = d.result()
+    assert got["a"]["distance_m"] == pytest.approx(5.0, rel=1e-15)
+    assert got["a"]["distance_frame"] == 1
+    assert got["a"]["angle_rad"] == pytest.approx(0.3, rel=1e-12)
+    assert got["a"]["angle_frame"] == 2
+    assert got["b"] == {"distance_m": 0.0, "distance_frame": None, "angle_rad": 0.0,
+                        "angle_frame": None}
+    assert describe_departure(got) == "a 5 m (frame 1), 0.3 rad (frame 2); b none"
+
+
+def test_a_what_if_says_how_far_its_parts_went_from_the_recording():
+    """A README trial: a what-if whose change shows only at round-off read "departs from
+    the recording" with two values and no word on their size. It now gives each part's
+    largest departure. ``drop_on_table`` let go at rest from height h above the table at
+    twice the flight gravity: the two falls are apart by (g2 - g1) t^2 / 2 until the faster
+    lands, and close again as the slower follows, so the largest is h (1 - g1/g2) at the
+    faster's landing, sampled at frames: low by at most the rate at which the gap changes
+    there (g1 t1 on either side of it, as g2 = 2 g1) times a frame (1/60 s)."""
+    import math as m
+    from vade_replay.replay import recorded_records
+    path = RECORDINGS / "drop_on_table.mcap"
+    records = list(recorded_records(Recording(path)))
+    peg = [next(p for p in r.parts if p.name == "peg") for r in records]
+    released = max(i for i, p in enumerate(peg) if p.mode == "INHAND") + 1
+    assert max(map(abs, peg[released].linear_velocity)) < 1e-9  # let go at rest
+    h = peg[released].position[2] - peg[-1].position[2]
+    g1 = 9.81 * 0.25
+    summary = replay(Recording(path), overrides={"physics.gravity_scale_free": "0.5"})
+    far = summary.largest_departure["peg"]
+    expected = h * (1.0 - 0.25 / 0.5)
+    t1 = m.sqrt(2.0 * h / (2.0 * g1))
+    assert expected - g1 * t1 / 60.0 <= far["distance_m"] <= expected + 1e-9
+    landing = released + t1 * 60.0
+    assert abs(far["distance_frame"] - landing) <= 1.5
+    assert far["angle_rad"] == 0.0  # let go level, it falls without turning
+    row = analysis_rows_of(summary)["peg"]
+    assert row["departure_m"] == far["distance_m"] and row["departure_rad"] == 0.0
+    result = run_cli("vade-replay", str(path), "--set", "physics.gravity_scale_free=0.5")
+    assert f"\nlargest departure: peg {far['distance_m']:.3g} m (frame " \
+           f"{far['distance_frame']})\n" in result.stdout
+    # A replay that matches departed nowhere; its table says 0.
+    plain = replay(Recording(path))
+    assert plain.match and plain.largest_departure == {}
+    assert analysis_rows_of(plain)["peg"]["departure_m"] == 0.0
+
+
+def analysis_rows_of(summary) -> dict:
+    from vade_replay.replay import analysis_rows
+    return {row["part"]: row for row in analysis_rows("x.mcap", summary.to_dict())}
+
+
+def test_a_replay_that_diverges_measures_its_departure_from_there(tmp_path):
+    """A golden that diverges says whether that is round-off or a part somewhere else: the
+    recording's peg, in the hand, moved up 1 mm from frame 60 on (a recording edited for
+    the test), so the replay departs at frame 60 by 1 mm, and by no angle."""
+    import json as json_
+    from mcap_edit import copy_recording
+
+    def lift(topic, frame, data):
+        if topic == "/parts" and frame >= 60:
+            doc = json_.loads(data)
+            for item in doc["parts"]:
+                if item["name"] == "peg":
+                    item["position"][2] += 0.001
+            return json_.dumps(doc).encode()
+        return data
+    path = tmp_path / "edited.mcap"
+    copy_recording(RECORDINGS / "drop_on_table.mcap", path, lift)
+    summary = replay(Recording(path))
+    assert not summary.match and summary.first_divergence["frame"] == 60
+    far = summary.largest_departure["peg"]
+    assert far["distance_m"] == pytest.approx(0.001, rel=1e-9)
+    assert far["distance_frame"] >= 60 and far["angle_rad"] == 0.0
+    result = run_cli("vade-replay", str(path))
+    assert result.returncode == 1
+    assert "\nlargest departure since: peg 0.001 m (frame " in result.stdout

@@ -878,7 +878,8 @@ def test_a_study_what_if_line_says_what_changed_in_the_analysis():
     line = next(x for x in result.stdout.splitlines() if x.startswith(files[0]))
     alone = run_cli("vade-replay", files[0], "--set", "physics.gravity_scale_free=1.0")
     (changes,) = [x for x in alone.stdout.splitlines() if x.startswith("analysis: ")]
-    assert line.endswith("; analysis changed: " + changes[len("analysis: "):])
+    assert "; analysis changed: " + changes[len("analysis: "):] + "; largest departure " in line
+    assert line.endswith(" m, 0 rad (peg)")
     other = next(x for x in result.stdout.splitlines() if x.startswith(files[1]))
     assert "the recording is unchanged" in other and "analysis" not in other
 

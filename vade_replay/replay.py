@@ -108,6 +108,12 @@ class RunSummary:
     # Each part's mass as the run had it (from its mesh and density, or its
     # mass_properties): a mesh in the wrong unit or a density in g/cm^3 shows here.
     masses_kg: dict[str, float] = field(default_factory=dict)
+    # How far the run's parts went from the recording's (``Departure``): part -> the largest
+    # distance between the two runs' positions (m) and angle between their orientations
+    # (rad), each with its frame. Measured in a what-if, and in a replay from its first
+    # divergence on; ``{}`` for a replay that matched (nothing departed); ``None`` where
+    # the recording's frames could not be read to measure it.
+    largest_departure: dict | None = None
     # Which build ran the frames (native.describe): compiled or the Python sources. Both
     # give the same bits; it says where to look when two machines disagree.
     build: str = field(default_factory=native.describe)
@@ -148,7 +154,7 @@ ANALYSIS_COLUMNS = ("recording", "session", "match", "first_divergence_frame", "
                     *(f"s_{mode.value}" for mode in Mode), "session_refused_grabs", "error",
                     "overrides", "truncated", "release_misses", "units", "mass_kg",
                     "as_recorded", "first_event_change_frame", "not_applied",
-                    "release_misses_landed")
+                    "release_misses_landed", "departure_m", "departure_rad")
 
 
 # The run frame by frame as tables (``vade-replay --events``, ``--poses``), for a study's own
@@ -157,6 +163,52 @@ EVENT_COLUMNS = ("recording", "frame", "time_s", "kind", "part", "cause", "hand"
                  "to_mode", "other", "contact_time_s", "vx", "vy", "vz", "wx", "wy", "wz")
 POSE_COLUMNS = ("recording", "frame", "time_s", "part", "mode", "x", "y", "z", "qx", "qy",
                 "qz", "qw", "vx", "vy", "vz", "wx", "wy", "wz")
+
+
+class Departure:
+    """How far a run's parts go from a recording's, frame by frame: for each part the
+    largest distance between the two positions (the parts' reference points, m) and the
+    largest angle between the two orientations (rad), each with the frame it was reached
+    in. What a what-if's first divergence cannot say: whether the change is round-off
+    (1e-13 m) or a part somewhere else."""
+
+    def __init__(self) -> None:
+        self.parts: dict[str, dict] = {}
+
+    def add(self, recorded: FrameRecord, replayed: FrameRecord) -> None:
+        theirs = {s.name: s for s in recorded.parts}
+        for ours in replayed.parts:
+            was = theirs.get(ours.name)
+            if was is None:
+                continue
+            far = self.parts.setdefault(ours.name, {"distance_m": 0.0, "distance_frame": None,
+                                                    "angle_rad": 0.0, "angle_frame": None})
+            distance = math.dist(was.position, ours.position)
+            if distance > far["distance_m"]:
+                far["distance_m"], far["distance_frame"] = distance, replayed.frame
+            angle = sp.quat_angle_between(was.rotation_xyzw, ours.rotation_xyzw)
+            if angle > far["angle_rad"]:
+                far["angle_rad"], far["angle_frame"] = angle, replayed.frame
+
+    def result(self) -> dict:
+        return {name: dict(far) for name, far in sorted(self.parts.items())}
+
+
+def describe_departure(largest: dict) -> str:
+    """``sleeve 3.2e-14 m (frame 90), 1.1e-13 rad (frame 91); peg none``: each part's
+    largest departure from the recording."""
+    items = []
+    for name, far in largest.items():
+        if not far["distance_m"] and not far["angle_rad"]:
+            items.append(f"{name} none")
+            continue
+        parts = []
+        if far["distance_m"]:
+            parts.append(f"{far['distance_m']:.3g} m (frame {far['distance_frame']})")
+        if far["angle_rad"]:
+            parts.append(f"{far['angle_rad']:.3g} rad (frame {far['angle_frame']})")
+        items.append(f"{name} " + ", ".join(parts))
+    return "; ".join(items) if items else "none"
 
 
 def event_rows(recording: str, record: FrameRecord, first_time_ns: int) -> list[dict]:
@@ -237,6 +289,12 @@ def analysis_rows(recording: str, summary: dict) -> list[dict]:
         # a pin dropped into its bore), for a study that counts failed placements.
         row["release_misses_landed"] = sum(miss["part"] == name and bool(miss.get("landed"))
                                            for miss in summary.get("release_misses") or ())
+        # How far the part went from the recording's (a what-if's, or a replay's since it
+        # diverged): 0 where it did not, empty where that could not be measured.
+        largest = summary.get("largest_departure")
+        far = (largest or {}).get(name) or {}
+        row["departure_m"] = "" if largest is None else far.get("distance_m", 0.0)
+        row["departure_rad"] = "" if largest is None else far.get("angle_rad", 0.0)
         mass = (summary.get("masses_kg") or {}).get(name, "")
         # (To 12 digits: a mesh's mass properties carry round-off, 0.34559999999999996.)
         row["mass_kg"] = float(f"{mass:.12g}") if isinstance(mass, float) else mass
@@ -1571,12 +1629,16 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
                                  extra_metadata={"replayed_from": str(recording.path)},
                                  parts_encoding=recording.parts_encoding)
     first_time = None
+    unreadable = False  # a recorded frame could not be decoded to measure the departure
     open_misses: dict[str, int] = {}  # part -> its miss still in flight (``landed``)
     advance = Stepper(scene, collision)
     encoder = codec.FrameEncoder(recording.parts_encoding)
     previous: FrameRecord | None = None
     # A what-if also folds the recorded frames, decoded, for the comparison of analyses.
     decoded: FrameRecord | None = None
+    # And measures how far its parts go from the recording's; a plain replay does from its
+    # first divergence on (before it, the two are the same bits).
+    departure: Departure | None = Departure() if applied else None
     if applied:
         summary.recorded_analysis = SessionAnalysis()
     try:
@@ -1596,6 +1658,10 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
                 divergence = None if ours is None \
                     else _divergence(recorded.inputs, recorded.derived, derived, replayed,
                                      previous)
+                if divergence and not applied and departure is None \
+                        and summary.first_divergence is None:
+                    # The frame before matched: it is the recording's, decoded.
+                    departure, decoded = Departure(), previous
                 previous = replayed
                 if first_time is None:
                     first_time = replayed.time_ns
@@ -1605,17 +1671,22 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
                     landed(summary.release_misses, open_misses, replayed)
                     summary.release_misses += release_misses(scene, replayed, first_time)
                     _opened(summary.release_misses, open_misses, replayed)
-                if summary.recorded_analysis is not None:
+                if departure is not None:
                     try:
                         decoded = recorded_record(recorded, decoded)
-                        summary.recorded_analysis.add(decoded)
                     except VadeError as exc:
                         # A recorded message this cannot read (a plain replay names it as
-                        # a divergence): the what-if goes on, without the comparison.
-                        summary.recorded_analysis = None
-                        summary.warnings.append(
-                            f"no comparison with the recording's analysis: its frame "
-                            f"{recorded.inputs.frame} cannot be read ({exc.message})")
+                        # a divergence): the run goes on, without the comparisons.
+                        if summary.recorded_analysis is not None:
+                            summary.warnings.append(
+                                f"no comparison with the recording's analysis or poses: its "
+                                f"frame {recorded.inputs.frame} cannot be read ({exc.message})")
+                        summary.recorded_analysis = departure = decoded = None
+                        unreadable = True
+                    else:
+                        departure.add(decoded, replayed)
+                        if summary.recorded_analysis is not None:
+                            summary.recorded_analysis.add(decoded)
                 if divergence and summary.first_divergence is None:
                     summary.first_divergence = divergence.__dict__ | {
                         "text": divergence.describe()}
@@ -1664,6 +1735,8 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
         summary.warnings += [w for w in fallen_past_everything(scene, previous, first_time)
                              if w not in recording.warnings]
     summary.match = summary.first_divergence is None
+    summary.largest_departure = departure.result() if departure is not None \
+        else None if unreadable else {}
     summary.counters = dict(collision.stats)
     summary.truncated = recording.truncated
     summary.stopped = recording.stopped

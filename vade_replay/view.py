@@ -36,6 +36,7 @@ import rerun.blueprint as rrb
 
 from vade_replay.errors import ConfigError
 from vade_replay.frames import FrameRecord, PartSnapshot
+from vade_replay import spatial as sp
 
 MODES: tuple[str, ...] = ("INHAND", "ONTOOL", "ONBASESLIDE", "ONBASESTATIC", "INSPACE", "STATIC", "PLACED")
 TRAJECTORY_MODES: frozenset[str] = frozenset({"INSPACE", "ONBASESLIDE"})
@@ -487,7 +488,7 @@ def _log_pose_difference(rec: rr.RecordingStream, *, record: FrameRecord, compar
         name = rr.escape_entity_path_part(part.name)
         distance_m = math.dist(part.position, other.position)
         rec.log(f"plots/difference/position_m/{name}", rr.Scalars(distance_m))
-        angle_rad = _rotation_angle(part.rotation_xyzw, other.rotation_xyzw)
+        angle_rad = sp.quat_angle_between(part.rotation_xyzw, other.rotation_xyzw)
         rec.log(f"plots/difference/rotation_rad/{name}", rr.Scalars(angle_rad))
 
 
@@ -587,18 +588,6 @@ def _matrix_from_quat(q: tuple) -> np.ndarray:
             [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
         ]
     )
-
-
-def _rotation_angle(a: tuple, b: tuple) -> float:
-    """Angle (rad, in [0, pi]) of the rotation taking a to b; q and -q are the same rotation."""
-    # atan2 of the relative rotation stays accurate near zero, where acos(w) does not.
-    ax, ay, az, aw = a
-    bx, by, bz, bw = b
-    x = aw * bx - ax * bw - ay * bz + az * by
-    y = aw * by + ax * bz - ay * bw - az * bx
-    z = aw * bz - ax * by + ay * bx - az * bw
-    w = aw * bw + ax * bx + ay * by + az * bz
-    return 2.0 * math.atan2(math.sqrt(x * x + y * y + z * z), abs(w))
 
 
 def _norm(v: tuple) -> float:
