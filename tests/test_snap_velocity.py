@@ -18,6 +18,18 @@ MU_D = 0.3               # the block's dynamic friction on the plate
 TOL = 1e-4               # physics.contact_tolerance's default, m
 
 
+def _block() -> dict:
+    """A 50 x 50 x 40 mm aluminium block on the plate's top plane (static friction 0.4)."""
+    return {"name": "block", "density": 2700,
+            "shape": {"type": "box", "size": [0.05, 0.05, 0.04]},
+            "pose": {"position": [0.3, -0.1, 0.76]},
+            "assembly": {"constraints": [{
+                "type": "plane", "name": "bottom_on_top",
+                "part": {"point": [0, 0, -0.02], "normal": [0, 0, -1]},
+                "base": {"point": [0, 0, 0.01], "normal": [0, 0, 1]},
+                "friction": {"static": 0.4, "dynamic": MU_D}}]}}
+
+
 def _block_let_go_moving(vx: float, *, base_vx: float = 0.0, snap: str | None = None,
                          vz: float = -0.01) -> dict:
     """A block carried over a level plate held still in the left hand (top at z 0.96) and
@@ -38,14 +50,7 @@ def _block_let_go_moving(vx: float, *, base_vx: float = 0.0, snap: str | None = 
                 {"t": 1.2, "position": [line(1.2, 0.0, base_vx), 0.2, 0.95]}]
     doc = {"format": "vade-session/1", "name": "snap_block", "units": "m",
            "base": {"name": "plate", "shape": {"type": "box", "size": [0.3, 0.3, 0.02]}},
-           "parts": [{"name": "block", "density": 2700,
-                      "shape": {"type": "box", "size": [0.05, 0.05, 0.04]},
-                      "pose": {"position": [0.3, -0.1, 0.76]},
-                      "assembly": {"constraints": [{
-                          "type": "plane", "name": "bottom_on_top",
-                          "part": {"point": [0, 0, -0.02], "normal": [0, 0, -1]},
-                          "base": {"point": [0, 0, 0.01], "normal": [0, 0, 1]},
-                          "friction": {"static": 0.4, "dynamic": MU_D}}]}}],
+           "parts": [_block()],
            "environment": [table()], "physics": {},
            "tracker": {"rate_hz": 60, "duration_s": 2.0,
                        "devices": {"left_hand": left, "right_hand": right}}}
@@ -379,14 +384,7 @@ def make_session_doc_wall(speed: float, yaw_deg: float) -> dict:
                 {"type": "box", "size": [0.3, 0.3, 0.02]},
                 {"type": "box", "size": [0.3, 0.02, 0.06],
                  "pose": {"position": [0.0, 0.14, 0.04]}}]}},
-            "parts": [{"name": "block", "density": 2700,
-                       "shape": {"type": "box", "size": [0.05, 0.05, 0.04]},
-                       "pose": {"position": [0.3, -0.1, 0.76]},
-                       "assembly": {"constraints": [{
-                           "type": "plane", "name": "bottom_on_top",
-                           "part": {"point": [0, 0, -0.02], "normal": [0, 0, -1]},
-                           "base": {"point": [0, 0, 0.01], "normal": [0, 0, 1]},
-                           "friction": {"static": 0.4, "dynamic": MU_D}}]}}],
+            "parts": [_block()],
             "environment": [table()],
             "tracker": {"rate_hz": 60, "duration_s": 1.2, "devices": {
                 "left_hand": [{"t": 0, "position": [0.0, 0.2, 0.95],
