@@ -89,6 +89,41 @@ def test_core_does_not_import_the_edges():
     assert not offenders, offenders
 
 
+# What builds or steps a scene: its numbers must be the same bits on every CPU, so none of
+# numpy's calls that go to BLAS or LAPACK, whose kernels the CPU chooses (vade_replay/arrays.py).
+_SAME_BITS = NO_IO + ["arrays", "replay", "session", "inputs", "analysis", "recording"]
+_BLAS_CALLS = {"dot", "vdot", "inner", "matmul", "tensordot", "einsum"}
+
+
+def _blas_uses(tree: ast.AST) -> list[str]:
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.BinOp, ast.AugAssign)) and isinstance(node.op, ast.MatMult):
+            found.append(f"{node.lineno}: @")
+        elif isinstance(node, ast.Attribute) and node.attr == "linalg":
+            found.append(f"{node.lineno}: linalg")
+        elif isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) \
+                and node.func.attr in _BLAS_CALLS \
+                and not (isinstance(node.func.value, ast.Name) and node.func.value.id == "sp"):
+            found.append(f"{node.lineno}: {node.func.attr}")
+    return found
+
+
+def test_scene_and_step_stay_off_blas():
+    offenders = []
+    for rel, tree in _sources():
+        stem = rel.removeprefix("vade_replay/").split("/")[0].removesuffix(".py")
+        if rel.startswith("vade_replay/") and stem in _SAME_BITS:
+            offenders += [f"{rel}:{where}" for where in _blas_uses(tree)]
+    assert not offenders, offenders
+
+
+def test_the_blas_rule_can_fail():
+    tree = ast.parse("a = x @ r.T\nb = np.linalg.eigh(m)\nc = np.einsum('ij,ij->i', a, a)\n"
+                     "d = sp.dot(u, v)\ne = a.dot(b)\n")
+    assert sorted(_blas_uses(tree)) == ["1: @", "2: linalg", "3: einsum", "5: dot"]
+
+
 def test_the_core_is_found():
     found = {rel for rel, _ in _core_sources()}
     assert {"vade_replay/step.py", "vade_replay/dynamics/free.py", "vade_replay/scene.py"} <= found

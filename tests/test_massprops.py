@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -181,3 +182,57 @@ def test_an_unreadable_mesh_is_named_from_the_session_that_names_it(data, needle
     text = str(info.value)
     assert needle in text and "'../meshes/p.stl'" in text and "parts[0].shape.file" in text
     assert info.value.file == make_session(doc, {"../meshes/p.stl": data}).source
+
+
+# --- Principal axes (spatial.symmetric_eigen: Jacobi rotations, the same bits anywhere) ---
+
+def _check_eigen(matrix, values, axes, tol):
+    a = np.array(matrix, dtype=np.float64)
+    v = np.array(axes)
+    scale = max(1e-300, float(np.max(np.abs(a))))
+    assert list(values) == sorted(values)
+    assert np.max(np.abs(v.T @ v - np.eye(3))) <= 4e-16 * 4          # orthonormal
+    assert np.linalg.det(v) > 0.0                                     # a rotation
+    assert np.max(np.abs(v @ np.diag(values) @ v.T - a)) <= tol * scale  # A = V D V^T
+
+
+def test_symmetric_eigen_matches_lapack_on_random_inertias():
+    from vade_replay import spatial as sp
+    rng = np.random.default_rng(7)
+    for k in range(3000):
+        q = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+        # Spread, nearly equal and exactly equal moments, over ten decades.
+        d = [rng.uniform(1e-6, 1.0, 3), np.array([1.0, 1.0, rng.uniform(0.1, 2.0)]),
+             10.0 ** rng.uniform(-10.0, 0.0, 3), 1.0 + 1e-12 * rng.normal(size=3)][k % 4]
+        a = q @ np.diag(d) @ q.T
+        a = ((a + a.T) / 2).tolist()
+        values, axes = sp.symmetric_eigen(a)
+        reference = np.linalg.eigvalsh(np.array(a))
+        assert np.max(np.abs(np.array(values) - reference)) <= 4e-15 * np.max(reference)
+        _check_eigen(a, values, axes, 4e-15)
+
+
+def test_symmetric_eigen_closed_forms():
+    from vade_replay import spatial as sp
+    # A diagonal tensor: its own values, sorted; the axes a signed permutation.
+    values, axes = sp.symmetric_eigen(((2.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 3.0)))
+    assert values == (1.0, 2.0, 3.0)
+    assert sorted(abs(x) for row in axes for x in row) == [0.0] * 6 + [1.0] * 3
+    assert np.array(axes)[:, 0].tolist() == [0.0, 1.0, 0.0]
+    # A solid cylinder (m 0.3 kg, r 0.02 m, h 0.1 m) turned 30 deg about x: m r^2 / 2 about
+    # its axis, m (3 r^2 + h^2) / 12 across it twice, and the axis found where it was turned.
+    m, r, h = 0.3, 0.02, 0.1
+    axial, across = m * r * r / 2, m * (3 * r * r + h * h) / 12
+    c, s = math.cos(math.radians(30)), math.sin(math.radians(30))
+    rot = np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+    tensor = (rot @ np.diag([across, across, axial]) @ rot.T).tolist()
+    values, axes = sp.symmetric_eigen(tensor)
+    assert values[0] == pytest.approx(axial, rel=1e-14)
+    assert values[1] == pytest.approx(across, rel=1e-14)
+    assert values[2] == pytest.approx(across, rel=1e-14)
+    assert abs(float(np.array(axes)[:, 0] @ rot[:, 2])) == pytest.approx(1.0, abs=1e-15)
+    _check_eigen(tensor, values, axes, 4e-16)
+    # Nothing to rotate: the identity, and a zero matrix.
+    assert sp.symmetric_eigen(np.eye(3).tolist()) == ((1.0, 1.0, 1.0), tuple(
+        tuple(row) for row in np.eye(3).tolist()))
+    assert sp.symmetric_eigen(np.zeros((3, 3)).tolist())[0] == (0.0, 0.0, 0.0)

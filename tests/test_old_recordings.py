@@ -2,8 +2,12 @@
 changed and how to replay it as it was made, and those options do replay it bit for bit.
 
 ``data/shaft_slide_off_before_analytic4.mcap`` is the golden as it was recorded before the
-sliding default became ``analytic4`` with located onsets (commit 7f9381c): a real old file,
-not one made to look old.
+sliding default became ``analytic4`` with located onsets (commit b037763): a real old file,
+made by the code of the commit before it, not one made to look old. With one change to that
+code: the principal axes found by ``spatial.symmetric_eigen``, as today's code finds them.
+The first file's came from numpy's ``eigh`` (LAPACK), whose kernel OpenBLAS chooses by the
+CPU, so it replayed as recorded only where OpenBLAS chose the kernel it was made with
+(SkylakeX); re-made so, on 2026-12-02, it replays as recorded under every kernel.
 """
 
 from __future__ import annotations

@@ -32,6 +32,7 @@ import fcl
 import numpy as np
 
 from . import spatial as sp
+from .arrays import dots, norms
 from .constraints import Mate, radial_extent
 from .scene import Body, Scene
 
@@ -125,7 +126,7 @@ def base_surfaces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
         return labels
     tri = vertices[faces]
     normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    lengths = np.linalg.norm(normals, axis=1)
+    lengths = norms(normals)
     normals = normals / np.where(lengths > 0.0, lengths, 1.0)[:, None]
     edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]),
                     axis=1)
@@ -135,7 +136,7 @@ def base_surfaces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     same = np.all(edges[1:] == edges[:-1], axis=1)
     a, b = owner[:-1][same], owner[1:][same]
     limit = math.cos(math.radians(_FOLD_DEG))
-    smooth = np.einsum("ij,ij->i", normals[a], normals[b]) >= limit
+    smooth = dots(normals[a], normals[b]) >= limit
     a, b = np.concatenate([a[smooth], b[smooth]]), np.concatenate([b[smooth], a[smooth]])
     by = np.lexsort((b, a))
     a, b = a[by], b[by]
@@ -206,7 +207,7 @@ class CollisionWorld:
             whole = fcl.CollisionObject(_bvh(base), identity)
             self._base_whole = whole
             self._base_faces, self._base_vertices = base.faces, base.vertices
-            self.base_radius = float(np.max(np.linalg.norm(base.vertices, axis=1)))
+            self.base_radius = float(np.max(norms(base.vertices)))
             for body in scene.parts:
                 if body.assembly is None:
                     continue
@@ -613,13 +614,12 @@ class CollisionWorld:
         normal = sp.normalize(gap)
         on_face = False
         if 0 <= result.b2 < len(faces):
-            a, b, c = (self._base_vertices[i] for i in faces[result.b2])
-            n = np.cross(b - a, c - a)
-            length = float(np.linalg.norm(n))
-            on_face = length > 0.0 and abs(sp.dot(normal, (float(n[0]) / length,
-                                                           float(n[1]) / length,
-                                                           float(n[2]) / length))) \
-                >= _FACE_COS
+            a, b, c = ((float(v[0]), float(v[1]), float(v[2]))
+                       for v in (self._base_vertices[i] for i in faces[result.b2]))
+            n = sp.cross(sp.sub(b, a), sp.sub(c, a))
+            length = sp.norm(n)
+            on_face = length > 0.0 and abs(sp.dot(normal, (n[0] / length, n[1] / length,
+                                                           n[2] / length))) >= _FACE_COS
         return normal, on_face
 
     def environment_near(self, center: sp.Vec3, radius: float) -> tuple[int, ...]:

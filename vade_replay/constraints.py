@@ -30,6 +30,7 @@ from typing import Final
 import numpy as np
 
 from . import spatial as sp
+from .arrays import dots
 
 DEFAULT_DISTANCE_TOLERANCE_M = 0.005
 DEFAULT_ANGLE_TOLERANCE_DEG = 10.0
@@ -119,9 +120,9 @@ def _frozen_index(values) -> np.ndarray:
 
 def _axis_distance(vertices: np.ndarray, point: sp.Vec3, direction: sp.Vec3) -> np.ndarray:
     rel = vertices - np.asarray(point)
-    along = rel @ np.asarray(direction)
+    along = dots(rel, direction)
     perp = rel - np.outer(along, np.asarray(direction))
-    return np.sqrt(np.einsum("ij,ij->i", perp, perp))
+    return np.sqrt(dots(perp, perp))
 
 
 # An edge between two corners at one distance from the axis, each on a ring (at least
@@ -145,9 +146,9 @@ def radial_extent(vertices: np.ndarray, faces: np.ndarray, point: sp.Vec3,
     u = np.asarray(direction, dtype=np.float64)
     rel = np.asarray(vertices, dtype=np.float64) - np.asarray(point, dtype=np.float64)
     e1 = np.cross(u, (1.0, 0.0, 0.0) if abs(u[0]) < 0.9 else (0.0, 1.0, 0.0))
-    e1 /= np.linalg.norm(e1)
+    e1 /= np.sqrt(dots(e1, e1))
     e2 = np.cross(u, e1)
-    x, y = (rel @ e1)[faces], (rel @ e2)[faces]          # (n, 3): the shadow's corners
+    x, y = dots(rel, e1)[faces], dots(rel, e2)[faces]    # (n, 3): the shadow's corners
     most = np.sqrt((x * x + y * y).max(axis=1))
     # Edges a->b, b->c, c->a at once: the nearest point of each to the axis (the origin).
     x0, y0 = x, y
@@ -160,8 +161,8 @@ def radial_extent(vertices: np.ndarray, faces: np.ndarray, point: sp.Vec3,
     if arcs and len(faces):
         # Each vertex's ring: its distance from the axis and place along it, to a quantum;
         # the corners of a face's edge on one ring of enough corners are an arc's.
-        along = rel @ u
-        radius = np.sqrt((rel @ e1) ** 2 + (rel @ e2) ** 2)
+        along = dots(rel, u)
+        radius = np.sqrt(dots(rel, e1) ** 2 + dots(rel, e2) ** 2)
         level = np.round(radius / _RING_QUANTUM_M)
         # (One complex key a vertex: np.unique on a 1-D array, not on rows.)
         keys = level + 1j * np.round(along / _RING_QUANTUM_M)
@@ -291,8 +292,8 @@ def _faces_out(vertices: np.ndarray, faces: np.ndarray, point: sp.Vec3,
     normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     u = np.asarray(direction, dtype=np.float64)
     centre = tri.mean(axis=1) - np.asarray(point, dtype=np.float64)
-    radial = centre - np.outer(centre @ u, u)
-    return np.einsum("ij,ij->i", normals, radial) > 0.0
+    radial = centre - np.outer(dots(centre, u), u)
+    return dots(normals, radial) > 0.0
 
 
 def _along_axis(vertices: np.ndarray, faces: np.ndarray, direction: sp.Vec3) -> np.ndarray:
@@ -300,9 +301,8 @@ def _along_axis(vertices: np.ndarray, faces: np.ndarray, direction: sp.Vec3) -> 
     a shaft or bore, not its end or bottom."""
     tri = vertices[faces]
     normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    lengths = np.linalg.norm(normals, axis=1)
-    along = np.abs(normals @ np.asarray(direction, dtype=np.float64)) \
-        / np.where(lengths > 0.0, lengths, 1.0)
+    lengths = np.sqrt(dots(normals, normals))
+    along = np.abs(dots(normals, direction)) / np.where(lengths > 0.0, lengths, 1.0)
     return (lengths > 0.0) & (along <= math.sin(math.radians(1.0)))
 
 
@@ -326,19 +326,19 @@ def axis_feature_faces(vertices: np.ndarray, faces: np.ndarray, point: sp.Vec3,
 def plane_feature_faces(vertices: np.ndarray, faces: np.ndarray, point: sp.Vec3,
                         normal: sp.Vec3, tol: float) -> np.ndarray:
     """Faces in a plane (within ``tol``) whose outward normal is the plane's normal."""
-    height = np.abs((vertices - np.asarray(point)) @ np.asarray(normal))
+    height = np.abs(dots(vertices - np.asarray(point), normal))
     tri = vertices[faces]
     face_normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    lengths = np.linalg.norm(face_normals, axis=1)
+    lengths = np.sqrt(dots(face_normals, face_normals))
     lengths[lengths == 0.0] = 1.0
-    facing = (face_normals @ np.asarray(normal)) / lengths > math.cos(math.radians(1.0))
+    facing = dots(face_normals, normal) / lengths > math.cos(math.radians(1.0))
     return np.nonzero((height[faces] <= tol).all(axis=1) & facing)[0]
 
 
 def _span(vertices: np.ndarray, point: sp.Vec3, direction: sp.Vec3) -> tuple[float, float]:
     if len(vertices) == 0:
         return (0.0, 0.0)
-    along = (vertices - np.asarray(point)) @ np.asarray(direction)
+    along = dots(vertices - np.asarray(point), direction)
     return (float(along.min()), float(along.max()))
 
 
@@ -463,7 +463,7 @@ def build_mate(*, name: str, kind: str, base_points, base_dirs, part_points, par
         # sides and bottom) can never be in the way of a part resting on top of it.
         below = np.zeros(len(base_vertices), dtype=bool)
         for p, n in zip(base_points, base_dirs):
-            below |= (base_vertices - np.asarray(p)) @ np.asarray(n) <= geometry_tol
+            below |= dots(base_vertices - np.asarray(p), n) <= geometry_tol
         rest = rest[~below[base_faces[rest]].all(axis=1)]
     return Mate(
         name=name, kind=kind, base_points=tuple(base_points), base_dirs=base_dirs,

@@ -24,8 +24,7 @@ import math
 import re
 from dataclasses import dataclass
 
-import numpy as np
-
+from . import spatial as sp
 from .errors import SessionError
 
 LENGTH_TO_M = {"M": 1.0, "METER": 1.0, "MM": 1e-3, "MILLIMETER": 1e-3, "CM": 1e-2,
@@ -59,7 +58,7 @@ def check(props: MassProperties, *, file: str | None, field: str) -> MassPropert
                 raise SessionError("inertia tensor is not symmetric", file=file, field=field)
     # The principal moments of a rigid body are positive and each at most the sum of the
     # other two (equality only for a flat body).
-    a, b, c = (float(m) for m in np.linalg.eigvalsh(np.array(inertia, dtype=np.float64)))
+    a, b, c = sp.symmetric_eigen(inertia)[0]
     slack = 1e-9 * (abs(a) + abs(b) + abs(c))
     if a <= 0.0 or c > a + b + slack:
         raise SessionError(

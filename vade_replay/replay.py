@@ -25,6 +25,7 @@ from . import codec, native
 from . import constraints as cn
 from . import spatial as sp
 from .analysis import SessionAnalysis, compare
+from .arrays import dots, norms, posed_points
 from .collision import SKIP_COAXIAL, SKIP_COPLANAR, CollisionWorld
 from .errors import ConfigError, RecordingError, SessionError, VadeError
 from .frames import FrameRecord, TrackerFrame
@@ -1107,7 +1108,7 @@ def _closed(faces: np.ndarray) -> bool:
 def _volume(vertices, faces) -> float:
     """The volume a closed mesh encloses (m^3): its signed tetrahedra from the origin."""
     v = vertices[faces]
-    return float(np.einsum("ij,ij->i", v[:, 0], np.cross(v[:, 1], v[:, 2])).sum()) / 6.0
+    return float(dots(v[:, 0], np.cross(v[:, 1], v[:, 2])).sum()) / 6.0
 
 
 def _overlapping_pairs(boxes: list[tuple[list[float], list[float]]]) -> list[tuple[int, int]]:
@@ -1132,10 +1133,9 @@ def _winding(vertices: np.ndarray, faces: np.ndarray, points: np.ndarray) -> np.
     for k in range(0, len(points), 64):  # (64 points x the triangles at a time)
         p = points[k:k + 64, None, :]
         a, b, c = tri[None, :, 0] - p, tri[None, :, 1] - p, tri[None, :, 2] - p
-        la, lb, lc = (np.linalg.norm(v, axis=2) for v in (a, b, c))
-        det = np.einsum("pfi,pfi->pf", a, np.cross(b, c))
-        div = la * lb * lc + np.einsum("pfi,pfi->pf", a, b) * lc \
-            + np.einsum("pfi,pfi->pf", a, c) * lb + np.einsum("pfi,pfi->pf", b, c) * la
+        la, lb, lc = norms(a), norms(b), norms(c)
+        det = dots(a, np.cross(b, c))
+        div = la * lb * lc + dots(a, b) * lc + dots(a, c) * lb + dots(b, c) * la
         out[k:k + 64] = np.arctan2(det, div).sum(axis=1) / (2.0 * np.pi)
     return out
 
@@ -1151,12 +1151,12 @@ def _surface_points(vertices: np.ndarray, faces: np.ndarray, n: int) -> np.ndarr
     be: the centroids of a k x k subdivision of each face, k its longest edge over that
     spacing (at least one a face: a long thin face gets its length's worth)."""
     tri = vertices[faces]
-    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    area = 0.5 * norms(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]))
     total = float(area.sum())
     if not total > 0.0:
         return np.zeros((0, 3))
     spacing = np.sqrt(total / n)
-    longest = np.max(np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2), axis=1)
+    longest = np.max(norms(tri - np.roll(tri, 1, axis=1)), axis=1)
     ks = np.maximum(1, np.ceil(longest / spacing)).astype(int)
     out = []
     for k in np.unique(ks):
@@ -1182,10 +1182,8 @@ def _depth_inside(collision: CollisionWorld, body, other, *, base: bool = False)
         return 0.0  # an open mesh (a tray, a cover) has no inside to be in
     pose, there = body.initial_pose, other.initial_pose
     to_other = there.inverse().compose(pose)
-    r = np.array(sp.quat_to_matrix(to_other.rotation))
-    points = np.concatenate([body.vertices, _surface_points(body.vertices, body.faces,
-                                                            _SURFACE_POINTS)])
-    points = points @ r.T + np.array(to_other.position)
+    points = posed_points(np.concatenate([body.vertices, _surface_points(
+        body.vertices, body.faces, _SURFACE_POINTS)]), to_other)
     lo, hi = np.array(other.bbox_min), np.array(other.bbox_max)
     points = points[np.all((points > lo) & (points < hi), axis=1)]
     if len(points) == 0:

@@ -38,6 +38,7 @@ finally:
     if _WITHOUT_SCIPY:
         del sys.modules["scipy"]
 
+from . import arrays
 from . import constraints as cn
 from . import spatial as sp
 from .dynamics.free import COMPOSITIONS, FREE_ROTATIONS
@@ -393,11 +394,8 @@ def _mesh_from_shape(shape: dict, length_factor: float, files: dict[str, bytes],
                                     shape_at=f"{at}.children[{i}]")
             pose = pose_from_doc(child.get("pose"), f, where=f"{at}.children[{i}].pose",
                                  file=file)
-            matrix = np.eye(4)
-            matrix[:3, :3] = np.array(sp.quat_to_matrix(pose.rotation))
-            matrix[:3, 3] = pose.position
-            mesh.apply_transform(matrix)
-            meshes.append(mesh)
+            meshes.append(trimesh.Trimesh(vertices=arrays.posed_points(mesh.vertices, pose),
+                                          faces=mesh.faces, process=False))
         combined: trimesh.Trimesh = trimesh.util.concatenate(meshes)  # type: ignore[assignment]
         return combined
     if kind == "box":
@@ -518,10 +516,8 @@ def _spread(doc: dict, mesh: trimesh.Trimesh, length_factor: float,
 
 
 def _principal(props: MassProperties) -> tuple[sp.Vec3, sp.Quat]:
-    moments, axes = np.linalg.eigh(np.array(props.inertia_cm, dtype=np.float64))
-    if np.linalg.det(axes) < 0.0:
-        axes[:, 2] = -axes[:, 2]
-    return _vec(moments), sp.quat_from_matrix(axes)
+    moments, axes = sp.symmetric_eigen(props.inertia_cm)
+    return moments, sp.quat_from_matrix(axes)
 
 
 # Keys of a part's document that do not change its geometry or mass.
@@ -580,7 +576,7 @@ def _geometry(doc: dict, length_factor: float, files: dict[str, bytes], *, where
                                                           (0.0, 0.0, 1.0)))
     moments, part_from_principal = _principal(props)
     vertices = np.asarray(mesh.vertices, dtype=np.float64)
-    radius = float(np.max(np.linalg.norm(vertices - np.array(props.center_of_mass), axis=1)))
+    radius = float(np.max(arrays.norms(vertices - np.array(props.center_of_mass))))
     faces = np.array(mesh.faces, dtype=np.int64)
     faces.setflags(write=False)
     return _frozen(vertices), faces, props, moments, part_from_principal, radius

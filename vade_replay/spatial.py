@@ -193,6 +193,68 @@ def transpose(m: Mat3) -> Mat3:
     return ((m[0][0], m[1][0], m[2][0]), (m[0][1], m[1][1], m[2][1]), (m[0][2], m[1][2], m[2][2]))
 
 
+# Jacobi sweeps: a 3x3 converges in about five; this only bounds a matrix of NaNs.
+_JACOBI_SWEEPS = 64
+
+
+def symmetric_eigen(m) -> tuple[Vec3, Mat3]:
+    """Eigenvalues, ascending, and eigenvectors (the columns, a rotation: determinant +1) of
+    a symmetric 3x3 matrix (its upper triangle is read), by cyclic Jacobi rotations.
+
+    Only +, -, *, / and sqrt, each rounded as IEEE 754 requires, in a fixed order: the same
+    bits on every machine. numpy's ``eigh`` goes through LAPACK and BLAS, whose kernels are
+    chosen by the CPU: two machines of one kind gave a cylinder different principal axes
+    (its two equal moments leave them free) and every part's axes different round-off."""
+    a = [[float(m[0][0]), float(m[0][1]), float(m[0][2])],
+         [float(m[0][1]), float(m[1][1]), float(m[1][2])],
+         [float(m[0][2]), float(m[1][2]), float(m[2][2])]]
+    v = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+    for _ in range(_JACOBI_SWEEPS):
+        rotated = False
+        for p, q, r in ((0, 1, 2), (0, 2, 1), (1, 2, 0)):
+            apq = a[p][q]
+            if apq == 0.0:
+                continue
+            app, aqq = a[p][p], a[q][q]
+            # Below the diagonal's last bit: the rotation would change nothing (Numerical
+            # Recipes' test), and setting it to zero ends the sweeps.
+            g = 100.0 * abs(apq)
+            if abs(app) + g == abs(app) and abs(aqq) + g == abs(aqq):
+                a[p][q] = a[q][p] = 0.0
+                continue
+            rotated = True
+            theta = (aqq - app) / (2.0 * apq)
+            if abs(theta) > 1e150:  # theta^2 would overflow: t ~ 1 / (2 theta)
+                t = 0.5 / theta
+            else:
+                t = 1.0 / (abs(theta) + math.sqrt(theta * theta + 1.0))
+                if theta < 0.0:
+                    t = -t
+            c = 1.0 / math.sqrt(t * t + 1.0)
+            s = t * c
+            tau = s / (1.0 + c)
+            h = t * apq
+            a[p][p] = app - h
+            a[q][q] = aqq + h
+            a[p][q] = a[q][p] = 0.0
+            arp, arq = a[r][p], a[r][q]
+            a[r][p] = a[p][r] = arp - s * (arq + tau * arp)
+            a[r][q] = a[q][r] = arq + s * (arp - tau * arq)
+            for row in v:
+                vp, vq = row[p], row[q]
+                row[p] = vp - s * (vq + tau * vp)
+                row[q] = vq + s * (vp - tau * vq)
+        if not rotated:
+            break
+    # Ascending, ties in index order; a reflection is turned into a rotation.
+    order = sorted(range(3), key=lambda i: (a[i][i], i))
+    values = (a[order[0]][order[0]], a[order[1]][order[1]], a[order[2]][order[2]])
+    cols = [(v[0][i], v[1][i], v[2][i]) for i in order]
+    if dot(cross(cols[0], cols[1]), cols[2]) < 0.0:
+        cols[2] = scale(cols[2], -1.0)
+    return values, transpose((cols[0], cols[1], cols[2]))
+
+
 @dataclass(slots=True)
 class Pose:
     """A rigid transform ``a_from_b``: maps coordinates in frame b to frame a.
