@@ -16,7 +16,7 @@ from pathlib import Path
 from vade_replay import session as session_mod
 from vade_replay.errors import ConfigError, VadeError
 from vade_replay.recording import Recording
-from vade_replay.replay import _first_difference, record, replay
+from vade_replay.replay import Tolerance, _first_difference, parse_tolerance, record, replay
 
 from . import _common
 from ._common import EXIT_DIVERGED, EXIT_OK, EXIT_UNUSABLE, run
@@ -36,6 +36,11 @@ def _parser() -> argparse.ArgumentParser:
                    help="replay every golden instead of rewriting it, and compare its session "
                         "with the session file; exit 1 if any diverges or is stale, 2 if any "
                         "cannot be replayed (missing, damaged, cut short)")
+    p.add_argument("--tolerance", metavar="D[,A]",
+                   help="with --check, on another machine: a golden that does not replay bit "
+                        "for bit still matches if it is within the tolerance, as vade-replay "
+                        "--tolerance says (the same events and modes at every frame, every "
+                        "part within D metres and A radians). Round-off: 1e-9")
     p.add_argument("names", nargs="*", help="only these sessions (default: all)")
     return p
 
@@ -55,7 +60,7 @@ def stale(session: session_mod.Session, recording: Recording) -> str | None:
     return None
 
 
-def _check(path: Path, golden: Path) -> tuple[str, str]:
+def _check(path: Path, golden: Path, tolerance: Tolerance | None = None) -> tuple[str, str]:
     """``(outcome, line)``: match, diverged, stale or unusable."""
     session = session_mod.load(path)  # a bad session file: unusable, named
     recording = Recording(golden)
@@ -67,14 +72,19 @@ def _check(path: Path, golden: Path) -> tuple[str, str]:
             f"{changed.split()[1]} (named by {path})"
         return "stale", (f"STALE: {what} changed since its golden was made ({changed}); "
                          f"regenerate it with vade-goldens --dir {path.parent} {path.stem}")
-    summary = replay(recording)
+    summary = replay(recording, tolerance=tolerance)
     if summary.truncated:
         raise VadeError(f"cut short (a crash while it was written): it holds {summary.frames} "
                         f"frames of its session; regenerate it with vade-goldens --dir "
                         f"{path.parent} {path.stem}", file=str(golden))
     if summary.match:
         return "match", "match"
+    if summary.within_tolerance and tolerance is not None:
+        return "match", (f"match within the tolerance ({tolerance.describe()}); not bit for "
+                         f"bit from frame {summary.first_divergence['frame']}")
     status = f"DIVERGED {summary.first_divergence['text']}"
+    if summary.beyond_tolerance:
+        status += f" (beyond the tolerance: {summary.beyond_tolerance})"
     if summary.physics_changed:
         status += (f" (recorded with other physics defaults: "
                    f"{', '.join(summary.physics_changed)}; vade-replay {golden} --as-recorded "
@@ -127,6 +137,10 @@ def _lock(folder: Path):
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    if args.tolerance is not None and not args.check:
+        raise ConfigError("--tolerance is for --check: a golden is regenerated bit for bit",
+                          field="--tolerance")
+    tolerance = None if args.tolerance is None else parse_tolerance(args.tolerance)
     _common.UNDONE = "the goldens after the last one named were not checked"
     folder = Path(args.dir)
     if not folder.is_dir():
@@ -152,7 +166,7 @@ def main(argv: list[str] | None = None) -> int:
     for path in sessions:
         golden = path.with_suffix(".mcap")
         try:
-            outcome, line = _check(path, golden)
+            outcome, line = _check(path, golden, tolerance)
         except VadeError as exc:
             # One golden (or its session) missing, damaged or cut short: named, and the
             # others still checked.

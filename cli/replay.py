@@ -14,9 +14,8 @@ from typing import Iterator, TextIO
 
 from vade_replay.errors import ConfigError
 from vade_replay.recording import Recording, ensure_writable
-from vade_replay.replay import (ANALYSIS_COLUMNS, analysis_rows, apply_overrides,
-                                describe_departure,
-                                miss_line, replay)
+from vade_replay.replay import (ANALYSIS_COLUMNS, Tolerance, analysis_rows, apply_overrides,
+                                describe_departure, miss_line, parse_tolerance, replay)
 from vade_replay.tables import FRAME_TABLES, STDOUT, FrameTables, TableError, TableFile
 
 from vade_replay.errors import VadeError
@@ -29,8 +28,9 @@ def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="vade-replay",
         description="Re-run the dynamics from a recording's tracker inputs alone and compare "
-                    "every derived message. Exit 0: identical; 1: diverged (the first "
-                    "divergent frame is printed); 2: the file is unusable.")
+                    "every derived message. Exit 0: identical (or within --tolerance); 1: "
+                    "diverged (the first divergent frame is printed); 2: the file is "
+                    "unusable.")
     p.add_argument("recordings", nargs="+", metavar="FILE.mcap",
                    help="recordings written by vade-record; with several, each is checked in "
                         "turn and the exit code is the worst")
@@ -53,6 +53,13 @@ def _parser() -> argparse.ArgumentParser:
                    help="replay with the physics defaults each recording was made with "
                         "(from its metadata), not this version's, where its session leaves "
                         "them to the default: does an older recording still reproduce?")
+    p.add_argument("--tolerance", metavar="D[,A]",
+                   help="as another machine's replay is checked: one that is not the "
+                        "recording bit for bit still matches (exit 0) if every frame has the "
+                        "same events, numbers aside, and modes, and every part is within D "
+                        "of its recorded position (metres, or 1um, 0.001mm) and A of its "
+                        "orientation (radians, or 0.001deg; without A, D's metres as "
+                        "radians). Round-off: 1e-9")
     p.add_argument("--csv", metavar="OUT.csv",
                    help="write the analysis as a table: a row per recording and part (seconds in "
                         "each state, grabs, drops, ..., placed at), for a study's sessions")
@@ -108,6 +115,11 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_intermixed_args(argv)
     args.recordings = _once_each(args.recordings)
     overrides = _overrides(args.set)
+    args.tolerance = None if args.tolerance is None else parse_tolerance(args.tolerance)
+    if args.tolerance is not None and overrides:
+        raise ConfigError("a what-if (--set) departs from its recording on purpose: "
+                          "--tolerance is for checking a replay as it was recorded",
+                          field="--tolerance")
     if args.spawn and not args.rerun:
         raise ConfigError("--spawn opens the review: give --rerun OUT.rrd too", field="--spawn")
     if args.jobs < 0:
@@ -297,7 +309,8 @@ def _write_table(table: TableFile, summaries: list[dict]) -> None:
 
 
 def _replay_one(path: str, overrides: dict[str, str], tables: dict[str, tuple[str, str]],
-                as_recorded: bool = False) -> tuple[str, object]:
+                as_recorded: bool = False,
+                tolerance: Tolerance | None = None) -> tuple[str, object]:
     """One recording of several, in a worker process of ``--jobs``: ``("summary", its
     summary as --json prints it)``, ``("error", why it is unusable)``, or ``("table",
     (message, option))`` when a table could not be written (which ends the run). Its frame
@@ -306,7 +319,7 @@ def _replay_one(path: str, overrides: dict[str, str], tables: dict[str, tuple[st
     try:
         for kind, (file, option) in tables.items():
             streams[kind] = (open(file, "w", newline="", encoding="utf-8"), option, file)
-        return _replay_rows(path, overrides, streams, as_recorded)
+        return _replay_rows(path, overrides, streams, as_recorded, tolerance)
     except OSError as exc:
         return "table", (f"cannot write a temporary table ({exc.strerror or exc})",
                          next(iter(tables.values()))[1])
@@ -317,14 +330,15 @@ def _replay_one(path: str, overrides: dict[str, str], tables: dict[str, tuple[st
 
 def _replay_rows(path: str, overrides: dict[str, str],
                  streams: dict[str, tuple[TextIO, str, str]],
-                 as_recorded: bool = False) -> tuple[str, object]:
+                 as_recorded: bool = False,
+                 tolerance: Tolerance | None = None) -> tuple[str, object]:
     """Replay one recording of several, its frame table rows to ``streams``."""
     try:
         frame_tables = FrameTables(path, streams, header=False) if streams else None
         # (One of several: a part or tool this session lacks is left out, not an error.)
         return "summary", replay(Recording(path), overrides=overrides,
                                  on_frame=frame_tables, as_recorded=as_recorded,
-                                 absent_ok=True).to_dict()
+                                 absent_ok=True, tolerance=tolerance).to_dict()
     except TableError as exc:
         if isinstance(exc.__context__, BrokenPipeError) and closed_pipe(sys.stdout):
             raise  # standard output closed by its reader: the run stops (run())
@@ -357,7 +371,7 @@ def _results_here(args, overrides: dict[str, str],
                 marks[kind] = table.stream.tell() if table.seekable else None
             except OSError as exc:
                 raise table.error(exc) from None
-        result = _replay_rows(path, overrides, streams, args.as_recorded)
+        result = _replay_rows(path, overrides, streams, args.as_recorded, args.tolerance)
         if result[0] == "error":
             for kind, table in tables.items():
                 if marks[kind] is not None:
@@ -408,7 +422,8 @@ def _results_in_workers(args, overrides: dict[str, str], outputs: dict[str, Tabl
         try:
             n = len(args.recordings)
             for result, parts in zip(pool.map(_replay_one, args.recordings, [overrides] * n,
-                                              tables, [args.as_recorded] * n),
+                                              tables, [args.as_recorded] * n,
+                                              [args.tolerance] * n),
                                      tables):
                 if result[0] == "summary":
                     for kind, (file, _) in parts.items():
@@ -454,9 +469,11 @@ def _tally(summaries: list[dict], what_if: bool) -> str:
     unusable = sum("error" in s for s in summaries)
     done = [s for s in summaries if "error" not in s]
     matched = sum(bool(s["match"]) for s in done)
-    parts = [f"{len(summaries)} recordings: {matched} "
-             + ("unchanged" if what_if else "match"),
-             f"{len(done) - matched} " + ("departed" if what_if else "diverged")]
+    within = sum(not s["match"] and bool(s.get("within_tolerance")) for s in done)
+    parts = [f"{len(summaries)} recordings: {matched + within} "
+             + ("unchanged" if what_if else "match")
+             + (f" ({within} within the tolerance)" if within else ""),
+             f"{len(done) - matched - within} " + ("departed" if what_if else "diverged")]
     cut = sum(bool(s.get("truncated")) for s in done)
     if cut:
         parts.append(f"{cut} cut short")
@@ -488,7 +505,7 @@ def _one_of_many(args, overrides: dict[str, str], path: str, result: tuple[str, 
             if summary.not_applied else ""
         print(f"{path}: {_verdict(summary, taken, short=True, path=path)}{left}{cut}",
               file=_lines)
-    return EXIT_OK if summary.match or taken else EXIT_DIVERGED
+    return EXIT_OK if summary.match or taken or summary.within_tolerance else EXIT_DIVERGED
 
 
 def _warn(path: str, summary) -> None:
@@ -514,8 +531,18 @@ def _verdict(summary, overrides: dict[str, str], *, short: bool = False,
         text = "match" if short else (
             f"match: {summary.frames} frames ({summary.duration_s:.2f} s), "
             f"{summary.messages_checked} derived messages identical to the recording")
+    elif getattr(summary, "within_tolerance", None):
+        text = f"match within the tolerance ({_tolerance_text(summary)})" + (
+            f"; not bit for bit from frame {summary.first_divergence['frame']}" if short
+            else ": the same events and modes at every frame, every part within it; not "
+                 f"bit for bit: {summary.first_divergence['text']}")
+        text += _departure_text(summary, short, since=True)
     else:
         text = f"DIVERGED{'' if short else ':'} {summary.first_divergence['text']}"
+        beyond = getattr(summary, "beyond_tolerance", None)
+        if beyond:
+            text += (f" (beyond the tolerance: {beyond})" if short else
+                     f"\nbeyond the tolerance ({_tolerance_text(summary)}): {beyond}")
         if summary.physics_changed:
             text += (f" (made with other physics defaults: {', '.join(summary.physics_changed)};"
                      f" vade-replay {path} --as-recorded replays it with them)" if short
@@ -562,6 +589,11 @@ def _verdict(summary, overrides: dict[str, str], *, short: bool = False,
     return text
 
 
+def _tolerance_text(summary) -> str:
+    given = summary.tolerance
+    return Tolerance(given["distance_m"], given["angle_rad"]).describe()
+
+
 def _departure_text(summary, short: bool, *, since: bool = False) -> str:
     """How far the parts went from the recording's (``RunSummary.largest_departure``): each
     part's largest, on a line of its own, or the largest of all on a study's line; whether
@@ -604,7 +636,7 @@ def _one(args, path: str, overrides: dict[str, str], outputs: dict[str, TableFil
 
     summary = replay(recording, overrides=overrides, out=args.output, on_frame=on_frame,
                      replace_other=args.force,
-                     as_recorded=args.as_recorded)
+                     as_recorded=args.as_recorded, tolerance=args.tolerance)
     progress.close()
     _warn(path, summary)
     if args.json:
@@ -631,7 +663,7 @@ def _one(args, path: str, overrides: dict[str, str], outputs: dict[str, TableFil
         if not args.json:
             print(f"review: {args.rerun} ({counts['frames']} frames; open with "
                   f"`rerun {args.rerun}`)", file=_lines)
-    if summary.match or overrides:
+    if summary.match or overrides or summary.within_tolerance:
         return EXIT_OK
     return EXIT_DIVERGED
 

@@ -503,7 +503,7 @@ def test_tables_end_their_lines_with_a_newline_alone(tmp_path):
         lines = data.decode().split("\n")[:-1]
         width = len(lines[0].split(","))
         assert len(lines) > 1 and all(line.count(",") + 1 >= width for line in lines)
-        assert lines[0].rsplit(",", 1)[1] in ("departure_rad", "wz"), option
+        assert lines[0].rsplit(",", 1)[1] in ("within_tolerance", "wz"), option
 
 
 def _snapshot(name: str, position, angle_about_z: float = 0.0):

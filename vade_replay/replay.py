@@ -115,6 +115,12 @@ class RunSummary:
     # divergence on; ``{}`` for a replay that matched (nothing departed); ``None`` where
     # the recording's frames could not be read to measure it.
     largest_departure: dict | None = None
+    # A replay held to a tolerance (``Tolerance``, ``--tolerance``), as another machine's
+    # is: the tolerance, whether the run stayed within it (a bit-for-bit match does), and
+    # why not where it did not. None, None, None where none was asked for.
+    tolerance: dict | None = None
+    within_tolerance: bool | None = None
+    beyond_tolerance: str | None = None
     # Which build ran the frames (native.describe): compiled or the Python sources. Both
     # give the same bits; it says where to look when two machines disagree.
     build: str = field(default_factory=native.describe)
@@ -155,7 +161,8 @@ ANALYSIS_COLUMNS = ("recording", "session", "match", "first_divergence_frame", "
                     *(f"s_{mode.value}" for mode in Mode), "session_refused_grabs", "error",
                     "overrides", "truncated", "release_misses", "units", "mass_kg",
                     "as_recorded", "first_event_change_frame", "not_applied",
-                    "release_misses_landed", "departure_m", "departure_rad")
+                    "release_misses_landed", "departure_m", "departure_rad",
+                    "within_tolerance")
 
 
 # The run frame by frame as tables (``vade-replay --events``, ``--poses``), for a study's own
@@ -175,6 +182,9 @@ class Departure:
 
     def __init__(self) -> None:
         self.parts: dict[str, dict] = {}
+        # The first frame a part is in another mode than the recording's: (frame, part,
+        # recorded mode, replayed mode), or None.
+        self.first_mode_difference: tuple[int, str, str, str] | None = None
 
     def add(self, recorded: FrameRecord, replayed: FrameRecord) -> None:
         theirs = {s.name: s for s in recorded.parts}
@@ -182,6 +192,8 @@ class Departure:
             was = theirs.get(ours.name)
             if was is None:
                 continue
+            if was.mode != ours.mode and self.first_mode_difference is None:
+                self.first_mode_difference = (replayed.frame, ours.name, was.mode, ours.mode)
             far = self.parts.setdefault(ours.name, {"distance_m": 0.0, "distance_frame": None,
                                                     "angle_rad": 0.0, "angle_frame": None})
             distance = math.dist(was.position, ours.position)
@@ -193,6 +205,73 @@ class Departure:
 
     def result(self) -> dict:
         return {name: dict(far) for name, far in sorted(self.parts.items())}
+
+
+@dataclass(frozen=True)
+class Tolerance:
+    """How near a replay that is not the recording bit for bit may come and still be the
+    same session: another machine's round-off (``--tolerance``; the determinism contract:
+    same transitions, poses within a stated tolerance). Within it: every frame's events
+    the same but for their numbers, every part in the recording's mode, within
+    ``distance_m`` of its position and ``angle_rad`` of its orientation at every frame."""
+
+    distance_m: float = 1e-9
+    angle_rad: float = 1e-9
+
+    def describe(self) -> str:
+        return f"{self.distance_m:.3g} m, {self.angle_rad:.3g} rad"
+
+
+_ANGLE_UNITS = {"rad": 1.0, "mrad": 1e-3, "urad": 1e-6, "µrad": 1e-6, "deg": math.pi / 180.0}
+
+
+def parse_tolerance(text: str, *, field: str = "--tolerance") -> Tolerance:
+    """``1e-9`` (metres), ``1um`` or ``0.001mm``: positions within that, orientations within
+    the angle that moves a point 1 m away by as much (1 um: 1e-6 rad); ``1um,1e-5rad`` or
+    ``0.01mm,0.001deg``: each its own (an angle without a unit is in radians)."""
+    distance, comma, angle = text.partition(",")
+
+    def number(value: str, units: dict[str, float], default_unit: str) -> float:
+        match = _WITH_UNIT.fullmatch(value)
+        try:
+            if match is not None and match.group(2) not in ("e", "E"):
+                amount, unit = match.groups()
+                if unit not in units:
+                    raise ConfigError(f"{value.strip()!r}: unknown unit {unit!r} (use "
+                                      f"{', '.join(units)})", field=field)
+                result = float(amount) * units[unit]
+            else:
+                result = float(value) * units[default_unit]
+        except ValueError:
+            raise ConfigError(f"{value.strip()!r} is not a number", field=field) from None
+        if not (math.isfinite(result) and result >= 0.0):
+            raise ConfigError(f"{value.strip()!r}: a tolerance is a finite number, 0 or more",
+                              field=field)
+        return result
+    distance_m = number(distance, _LENGTH_UNITS, "m")
+    # A point 1 m from a part's reference point turned by angle_rad moves angle_rad metres.
+    angle_rad = number(angle, _ANGLE_UNITS, "rad") if comma else distance_m
+    return Tolerance(distance_m, angle_rad)
+
+
+def _beyond(tolerance: Tolerance, departure: Departure | None,
+            event_difference: dict | None) -> str | None:
+    """Why a replay that diverged is not within ``tolerance`` of its recording, or None."""
+    if departure is None:
+        return "its recorded frames could not all be read to measure the departure"
+    if event_difference is not None:
+        return "events differ at " + event_difference["text"]
+    if departure.first_mode_difference is not None:
+        frame, part, was, now = departure.first_mode_difference
+        return f"{part} is {now} at frame {frame}, where the recording has it {was}"
+    for name, far in sorted(departure.parts.items()):
+        if far["distance_m"] > tolerance.distance_m:
+            return (f"{name} is {far['distance_m']:.3g} m from the recording's position at "
+                    f"frame {far['distance_frame']}")
+        if far["angle_rad"] > tolerance.angle_rad:
+            return (f"{name} is turned {far['angle_rad']:.3g} rad from the recording's "
+                    f"orientation at frame {far['angle_frame']}")
+    return None
 
 
 def describe_departure(largest: dict) -> str:
@@ -271,6 +350,9 @@ def analysis_rows(recording: str, summary: dict) -> list[dict]:
                # A what-if's first frame whose events differ from the recording's.
                "first_event_change_frame": (summary.get("first_event_change") or {}).get(
                    "frame", ""),
+               # Held to --tolerance: whether within it (empty where none was asked).
+               "within_tolerance": "" if summary.get("within_tolerance") is None
+               else summary["within_tolerance"],
                # Cut short (a crash while recording): the frames it held, not the session.
                "truncated": bool(summary.get("truncated")),
                # The session's length unit, which a what-if's lengths are in (a study may
@@ -1571,7 +1653,7 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
            out: str | Path | None = None,
            on_frame: Callable[[ReplayFrame], None] | None = None,
            as_recorded: bool = False, replace_other: bool = True,
-           absent_ok: bool = False) -> RunSummary:
+           absent_ok: bool = False, tolerance: Tolerance | None = None) -> RunSummary:
     """Replay a recording from its inputs alone and check every derived message.
 
     With ``overrides`` the scene's physics is changed first (a what-if replay); the check
@@ -1585,8 +1667,13 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     this regenerated recording made again is refused first (``refuse_replacing``). With
     ``absent_ok``, an override of a part or tool the session does not have is left out
     (``RunSummary.not_applied``, and a warning) instead of an error: one of a study's
-    sessions in a what-if of a part the others have.
+    sessions in a what-if of a part the others have. With ``tolerance`` a replay that is
+    not the recording bit for bit is also held to it (``RunSummary.within_tolerance``):
+    another machine's run of the same session.
     """
+    if tolerance is not None and overrides:
+        raise ConfigError("a what-if departs from its recording on purpose: --tolerance is "
+                          "for checking a replay of it as it is", field="--tolerance")
     restored = None
     session = recording.session
     if as_recorded:
@@ -1637,6 +1724,7 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     # And measures how far its parts go from the recording's; a plain replay does from its
     # first divergence on (before it, the two are the same bits).
     departure: Departure | None = Departure() if applied else None
+    event_difference: dict | None = None  # (with a tolerance: events, numbers aside)
     if applied:
         summary.recorded_analysis = SessionAnalysis()
     try:
@@ -1691,6 +1779,9 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
                 if applied and ours is not None and summary.first_event_change is None:
                     summary.first_event_change = _event_change(recorded.derived, ours,
                                                                 replayed, first_time)
+                if tolerance is not None and ours is not None and event_difference is None:
+                    event_difference = _event_change(recorded.derived, ours, replayed,
+                                                     first_time, numbers=False)
                 if writer:
                     writer.write_frame(replayed, derived)
                 if on_frame:
@@ -1735,6 +1826,12 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     summary.match = summary.first_divergence is None
     summary.largest_departure = departure.result() if departure is not None \
         else None if unreadable else {}
+    if tolerance is not None:
+        summary.tolerance = {"distance_m": tolerance.distance_m,
+                             "angle_rad": tolerance.angle_rad}
+        summary.beyond_tolerance = None if summary.match else _beyond(
+            tolerance, None if unreadable else departure, event_difference)
+        summary.within_tolerance = summary.beyond_tolerance is None
     summary.counters = dict(collision.stats)
     summary.truncated = recording.truncated
     summary.stopped = recording.stopped
@@ -1752,16 +1849,40 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     return summary
 
 
+def _numbers_masked(value):
+    """A parsed message with each float (a velocity) and each instant (a contact's
+    ``time_ns``, found in the frame by a root search) replaced by one mark: events compared
+    for what happened, not for their numbers' last bits."""
+    if type(value) is float:
+        return "<number>"
+    if isinstance(value, list):
+        return [_numbers_masked(v) for v in value]
+    if isinstance(value, dict):
+        return {k: "<number>" if k == "time_ns" else _numbers_masked(v)
+                for k, v in value.items()}
+    return value
+
+
 def _event_change(recorded: list[tuple[str, bytes]], ours: list[tuple[str, bytes]],
-                  replayed: FrameRecord, first_time_ns: int | None) -> dict | None:
+                  replayed: FrameRecord, first_time_ns: int | None, *,
+                  numbers: bool = True) -> dict | None:
     """Where a what-if's frame's events differ from the recording's: the frame, and what
-    each run had (kind, part, cause); None where they are the same."""
+    each run had (kind, part, cause); None where they are the same. ``numbers`` False: a
+    replay held to a tolerance, whose events may differ in their numbers alone (each
+    event's other fields, its kind, part, cause, modes and hand, must be the same)."""
     def events(messages):
         return [(topic, data) for topic, data in messages
                 if topic.startswith(codec.EVENT_TOPIC_PREFIX)]
     theirs, mine = events(recorded), events(ours)
     if theirs == mine:
         return None
+    if not numbers:
+        try:
+            if [(t, _numbers_masked(codec.parse_json(d))) for t, d in theirs] \
+                    == [(t, _numbers_masked(codec.parse_json(d))) for t, d in mine]:
+                return None
+        except ValueError:
+            pass  # a recorded event that is not JSON: a difference
 
     def listed(messages) -> str:
         out = []
@@ -1775,11 +1896,13 @@ def _event_change(recorded: list[tuple[str, bytes]], ours: list[tuple[str, bytes
         return ", ".join(out) or "none"
     before, after = listed(theirs), listed(mine)
     t = (replayed.time_ns - (replayed.time_ns if first_time_ns is None else first_time_ns)) / 1e9
-    text = f"frame {replayed.frame} (t = {t:.6f} s): recorded {before}; what-if {after}"
+    run = "what-if" if numbers else "replayed"
+    text = f"frame {replayed.frame} (t = {t:.6f} s): recorded {before}; {run} {after}"
     if before == after:
-        text += " (the same events, other values)"
-    return {"frame": replayed.frame, "time_s": t, "recorded": before, "what_if": after,
-            "text": text}
+        text += " (the same events, other values)" if numbers else \
+            " (the same events, other fields)"
+    return {"frame": replayed.frame, "time_s": t, "recorded": before,
+            run.replace("-", "_"): after, "text": text}
 
 
 def recorded_record(frame: RecordedFrame, previous: FrameRecord | None = None) -> FrameRecord:

@@ -1,0 +1,206 @@
+"""``--tolerance``: a replay that is not its recording bit for bit, as another machine's may
+not be (another libm, another compiler), still matches if it is the same session: the same
+events and modes at every frame, every part within the tolerance of its recorded pose.
+
+The recordings here are goldens with one recorded message changed (``mcap_edit``), so the
+replay, which computes its own, differs from them exactly there, by a known amount."""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+from pathlib import Path
+
+import pytest
+
+from conftest import RECORDINGS, run_cli
+from mcap_edit import copy_recording, nudge_pose
+from vade_replay.errors import ConfigError
+from vade_replay.recording import Recording
+from vade_replay.replay import Tolerance, parse_tolerance, replay
+
+GOLDEN = RECORDINGS / "drop_on_table.mcap"  # peg: grabbed at 42, released at 84, lands at 115
+
+
+@pytest.mark.parametrize("text, distance_m, angle_rad", [
+    ("1e-9", 1e-9, 1e-9),                    # metres, and the angle moving 1 m by as much
+    ("1um", 1e-6, 1e-6), ("0.001mm", 1e-6, 1e-6), (" 2 µm ", 2e-6, 2e-6),
+    ("1e-9,3e-9", 1e-9, 3e-9),               # an angle without a unit is in radians
+    ("0.01mm,0.001deg", 1e-5, math.radians(0.001)), ("1e-6m,2urad", 1e-6, 2e-6),
+    ("0", 0.0, 0.0),
+])
+def test_a_tolerance_reads_lengths_and_angles_in_their_units(text, distance_m, angle_rad):
+    tolerance = parse_tolerance(text)
+    assert tolerance.distance_m == pytest.approx(distance_m, rel=1e-15)
+    assert tolerance.angle_rad == pytest.approx(angle_rad, rel=1e-15)
+
+
+@pytest.mark.parametrize("text, says", [
+    ("abc", "not a number"), ("-1e-9", "0 or more"), ("nan", "finite"), ("inf", "finite"),
+    ("1zz", "unknown unit 'zz'"), ("1e-9,", "not a number"), ("1um,1mm", "unknown unit 'mm'"),
+])
+def test_a_bad_tolerance_is_named(text, says):
+    with pytest.raises(ConfigError) as caught:
+        parse_tolerance(text)
+    assert caught.value.field == "--tolerance" and says in caught.value.message
+
+
+def _nudged(tmp_path: Path, delta: float) -> Path:
+    out = tmp_path / f"nudged_{delta:g}.mcap"
+    nudge_pose(GOLDEN, out, frame=100, axis=2, delta=delta)  # peg's z, in flight
+    return out
+
+
+def test_round_off_is_within_the_tolerance_and_a_millimetre_is_not(tmp_path):
+    small, large = _nudged(tmp_path, 1e-12), _nudged(tmp_path, 1e-3)
+    plain = replay(Recording(small))
+    assert not plain.match and plain.within_tolerance is None and plain.tolerance is None
+    held = replay(Recording(small), tolerance=Tolerance(1e-9, 1e-9))
+    assert not held.match and held.first_divergence["frame"] == 100
+    assert held.within_tolerance is True and held.beyond_tolerance is None
+    assert held.largest_departure["peg"]["distance_m"] == pytest.approx(1e-12, rel=1e-3)
+    assert held.tolerance == {"distance_m": 1e-9, "angle_rad": 1e-9}
+    far = replay(Recording(large), tolerance=Tolerance(1e-9, 1e-9))
+    assert far.within_tolerance is False
+    assert far.beyond_tolerance == "peg is 0.001 m from the recording's position at frame 100"
+    # A golden that matches bit for bit is within any tolerance, 0 included.
+    exact = replay(Recording(GOLDEN), tolerance=Tolerance(0.0, 0.0))
+    assert exact.match and exact.within_tolerance is True
+
+
+def _edited(tmp_path: Path, name: str, topic: str, frame: int, change) -> Path:
+    """The golden with ``change(message)`` applied to ``topic``'s message of ``frame``."""
+    counts: dict[str, int] = {}
+
+    def edit(t, index, data):
+        if t != topic:
+            return data
+        msg = json.loads(data)
+        if msg.get("frame") != frame:
+            return data
+        counts[t] = counts.get(t, 0) + 1
+        msg = change(msg)
+        return None if msg is None else json.dumps(msg, sort_keys=True,
+                                                   separators=(",", ":")).encode()
+    out = tmp_path / f"{name}.mcap"
+    copy_recording(GOLDEN, out, edit)
+    assert counts == {topic: 1}, f"no {topic} message at frame {frame}"
+    return out
+
+
+def _release_velocity(msg):
+    msg["linear_velocity"][2] *= 1.0 + 1e-12
+    return msg
+
+
+def _release_hand(msg):
+    msg["hand"] = "left_hand"
+    return msg
+
+
+def _mode(msg):
+    msg["parts"][0]["mode"] = "STATIC"  # the peg is in flight at frame 100
+    return msg
+
+
+@pytest.mark.parametrize("name, topic, frame, change, within, beyond", [
+    # An event's numbers (the release velocity) in their last bits: the same events.
+    ("velocity", "/events/PartReleased", 84, _release_velocity, True, None),
+    # A contact's instant a nanosecond later: found by a root search, round-off too.
+    ("instant", "/events/ContactMade", 115, lambda m: {**m, "time_ns": m["time_ns"] + 1},
+     True, None),
+    # What happened is not the same: another hand let go, an event missing, another mode.
+    ("hand", "/events/PartReleased", 84, _release_hand, False,
+     "events differ at frame 84 (t = 1.400000 s): recorded PartReleased peg (released), "
+     "ModeChanged peg (released); replayed PartReleased peg (released), ModeChanged peg "
+     "(released) (the same events, other fields)"),
+    ("missing", "/events/ContactMade", 115, lambda m: None, False,
+     "events differ at frame 115 (t = 1.916667 s): recorded ModeChanged peg "
+     "(hit_environment); replayed ContactMade peg (hit_environment), ModeChanged peg "
+     "(hit_environment)"),
+    ("mode", "/parts", 100, _mode, False,
+     "peg is INSPACE at frame 100, where the recording has it STATIC"),
+])
+def test_events_and_modes_must_be_the_same_but_for_their_numbers(tmp_path, name, topic, frame,
+                                                                change, within, beyond):
+    path = _edited(tmp_path, name, topic, frame, change)
+    summary = replay(Recording(path), tolerance=Tolerance(1e-9, 1e-9))
+    assert not summary.match
+    assert summary.within_tolerance is within
+    assert summary.beyond_tolerance == beyond
+
+
+def test_the_commands_exit_0_within_the_tolerance_and_say_so(tmp_path):
+    small, large = _nudged(tmp_path, 1e-12), _nudged(tmp_path, 1e-3)
+    result = run_cli("vade-replay", str(small))
+    assert result.returncode == 1 and result.stdout.startswith("DIVERGED")
+    result = run_cli("vade-replay", str(small), "--tolerance", "1e-9")
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.startswith("match within the tolerance (1e-09 m, 1e-09 rad): the "
+                                    "same events and modes at every frame")
+    assert "first divergence at frame 100" in result.stdout
+    result = run_cli("vade-replay", str(large), "--tolerance", "1um")
+    assert result.returncode == 1
+    assert ("beyond the tolerance (1e-06 m, 1e-06 rad): peg is 0.001 m from the recording's "
+            "position at frame 100") in result.stdout
+    summary = json.loads(run_cli("vade-replay", str(small), "--tolerance", "1e-9",
+                                 "--json").stdout)
+    assert summary["match"] is False and summary["within_tolerance"] is True
+    # A study: the line and the tally say which matched only within the tolerance; the
+    # table has the column.
+    table = tmp_path / "study.csv"
+    result = run_cli("vade-replay", str(GOLDEN), str(small), str(large), "--tolerance", "1e-9",
+                     "--csv", str(table))
+    assert result.returncode == 1
+    lines = result.stdout.splitlines()
+    assert lines[0] == f"{GOLDEN}: match"
+    assert lines[1].startswith(f"{small}: match within the tolerance (1e-09 m, 1e-09 rad); "
+                               "not bit for bit from frame 100")
+    assert lines[2].startswith(f"{large}: DIVERGED") and "beyond the tolerance" in lines[2]
+    assert lines[3] == ("3 recordings: 2 match (1 within the tolerance), 1 diverged, 0 could "
+                        "not be replayed")
+    rows = table.read_text().splitlines()
+    column = rows[0].split(",").index("within_tolerance")
+    assert [row.split(",")[column] for row in rows[1:]] == ["True", "True", "False"]
+
+
+def test_a_what_if_is_not_held_to_a_tolerance():
+    result = run_cli("vade-replay", str(GOLDEN), "--tolerance", "1e-9",
+                     "--set", "physics.gravity_scale_free=1.0")
+    assert result.returncode == 2 and result.stdout == ""
+    assert result.stderr.startswith("error: --tolerance: a what-if (--set) departs")
+    result = run_cli("vade-replay", str(GOLDEN), "--tolerance", "fast")
+    assert result.returncode == 2 and "'fast' is not a number" in result.stderr
+
+
+def test_goldens_checked_on_another_machine(tmp_path):
+    folder = tmp_path / "goldens"
+    folder.mkdir()
+    shutil.copy(RECORDINGS / "drop_on_table.json", folder)
+    shutil.copy(_nudged(tmp_path, 1e-12), folder / "drop_on_table.mcap")
+    result = run_cli("vade-goldens", "--check", "--dir", str(folder))
+    assert result.returncode == 1 and "DIVERGED" in result.stdout
+    result = run_cli("vade-goldens", "--check", "--dir", str(folder), "--tolerance", "1e-9")
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert result.stdout == (f"{folder / 'drop_on_table.mcap'}: match within the tolerance "
+                             "(1e-09 m, 1e-09 rad); not bit for bit from frame 100\n")
+    result = run_cli("vade-goldens", "--dir", str(folder), "--tolerance", "1e-9")
+    assert result.returncode == 2 and "--tolerance is for --check" in result.stderr
+
+
+def test_a_recording_made_with_other_principal_axes_is_the_same_session_to_round_off():
+    """``data/throw_and_catch_other_axes.mcap`` is the golden as recorded before 2026-12-02,
+    on a machine whose OpenBLAS kernel (SkylakeX) gave numpy's ``eigh`` other principal axes
+    for the cylinder (its two equal moments leave them free): a real recording of another
+    machine. It is not this run bit for bit; it is the same session, the cylinder's flight
+    within 1e-13 rad of it, turned about other axes by other round-off."""
+    other = Recording(Path(__file__).resolve().parent / "data" / "throw_and_catch_other_axes.mcap")
+    summary = replay(other, tolerance=Tolerance(1e-9, 1e-9))
+    assert not summary.match and summary.first_divergence["frame"] == 61
+    assert summary.within_tolerance is True
+    far = summary.largest_departure["cylinder"]
+    assert 0.0 < far["angle_rad"] < 1e-13 and far["distance_m"] < 1e-13
+    # Its analysis is this run's: the same grabs, throw and catch at the same frames.
+    assert summary.analysis.result() == replay(Recording(GOLDEN.with_name(
+        "throw_and_catch.mcap"))).analysis.result()
