@@ -178,3 +178,28 @@ class Progress:
         if self.enabled and self.count >= 30:
             sys.stderr.write("\n")
             sys.stderr.flush()
+
+
+def tolerance_text(summary) -> str:
+    """``1e-09 m, 1e-09 rad``: the tolerance a replay was held to (``RunSummary.tolerance``)."""
+    given = summary.tolerance
+    return f"{given['distance_m']:.3g} m, {given['angle_rad']:.3g} rad"
+
+
+def within_tolerance_text(summary, *, short: bool) -> str:
+    """A replay not bit for bit but within its tolerance: the verdict's words."""
+    if short:
+        return (f"match within the tolerance ({tolerance_text(summary)}); not bit for bit "
+                f"from frame {summary.first_divergence['frame']}")
+    return (f"match within the tolerance ({tolerance_text(summary)}): every message the "
+            "recording's but for round-off in motion; not bit for bit: "
+            f"{summary.first_divergence['text']}")
+
+
+def beyond_tolerance_text(summary, *, short: bool) -> str:
+    """Why a replay held to a tolerance is past it, after its divergence ("" if none)."""
+    if not getattr(summary, "beyond_tolerance", None):
+        return ""
+    if short:
+        return f" (beyond the tolerance: {summary.beyond_tolerance})"
+    return f"\nbeyond the tolerance ({tolerance_text(summary)}): {summary.beyond_tolerance}"

@@ -39,8 +39,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--tolerance", metavar="D[,A]",
                    help="with --check, on another machine: a golden that does not replay bit "
                         "for bit still matches if it is within the tolerance, as vade-replay "
-                        "--tolerance says (the same events and modes at every frame, every "
-                        "part within D metres and A radians). Round-off: 1e-9")
+                        "--tolerance says (every message the recording's but for positions "
+                        "within D metres, orientations within A radians and velocities "
+                        "within those per second). Round-off: 1e-9")
     p.add_argument("names", nargs="*", help="only these sessions (default: all)")
     return p
 
@@ -79,12 +80,13 @@ def _check(path: Path, golden: Path, tolerance: Tolerance | None = None) -> tupl
                         f"{path.parent} {path.stem}", file=str(golden))
     if summary.match:
         return "match", "match"
-    if summary.within_tolerance and tolerance is not None:
-        return "match", (f"match within the tolerance ({tolerance.describe()}); not bit for "
-                         f"bit from frame {summary.first_divergence['frame']}")
+    if summary.within_tolerance:
+        line = _common.within_tolerance_text(summary, short=True)
+        if summary.physics_changed:
+            line += f" (recorded with other physics defaults: {', '.join(summary.physics_changed)})"
+        return "match", line
     status = f"DIVERGED {summary.first_divergence['text']}"
-    if summary.beyond_tolerance:
-        status += f" (beyond the tolerance: {summary.beyond_tolerance})"
+    status += _common.beyond_tolerance_text(summary, short=True)
     if summary.physics_changed:
         status += (f" (recorded with other physics defaults: "
                    f"{', '.join(summary.physics_changed)}; vade-replay {golden} --as-recorded "
@@ -138,7 +140,7 @@ def _lock(folder: Path):
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     if args.tolerance is not None and not args.check:
-        raise ConfigError("--tolerance is for --check: a golden is regenerated bit for bit",
+        raise ConfigError("only with --check: a golden is regenerated bit for bit",
                           field="--tolerance")
     tolerance = None if args.tolerance is None else parse_tolerance(args.tolerance)
     _common.UNDONE = "the goldens after the last one named were not checked"

@@ -20,8 +20,9 @@ from vade_replay.tables import FRAME_TABLES, STDOUT, FrameTables, TableError, Ta
 
 from vade_replay.errors import VadeError
 
-from ._common import (EXIT_DIVERGED, EXIT_OK, EXIT_UNUSABLE, Progress, closed_pipe,
-                      going_on_without_stdout, not_standard_output, print_json, run)
+from ._common import (EXIT_DIVERGED, EXIT_OK, EXIT_UNUSABLE, Progress, beyond_tolerance_text,
+                      closed_pipe, going_on_without_stdout, not_standard_output, print_json,
+                      run, within_tolerance_text)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -55,11 +56,11 @@ def _parser() -> argparse.ArgumentParser:
                         "them to the default: does an older recording still reproduce?")
     p.add_argument("--tolerance", metavar="D[,A]",
                    help="as another machine's replay is checked: one that is not the "
-                        "recording bit for bit still matches (exit 0) if every frame has the "
-                        "same events, numbers aside, and modes, and every part is within D "
-                        "of its recorded position (metres, or 1um, 0.001mm) and A of its "
-                        "orientation (radians, or 0.001deg; without A, D's metres as "
-                        "radians). Round-off: 1e-9")
+                        "recording bit for bit still matches (exit 0) if every message is "
+                        "the recording's but for its numbers of motion: positions within D "
+                        "(metres, or 1um, 0.001mm), orientations within A (radians, or "
+                        "0.001deg; without A, D's metres as radians), velocities within D "
+                        "and A per second. Round-off: 1e-9")
     p.add_argument("--csv", metavar="OUT.csv",
                    help="write the analysis as a table: a row per recording and part (seconds in "
                         "each state, grabs, drops, ..., placed at), for a study's sessions")
@@ -532,17 +533,13 @@ def _verdict(summary, overrides: dict[str, str], *, short: bool = False,
             f"match: {summary.frames} frames ({summary.duration_s:.2f} s), "
             f"{summary.messages_checked} derived messages identical to the recording")
     elif getattr(summary, "within_tolerance", None):
-        text = f"match within the tolerance ({_tolerance_text(summary)})" + (
-            f"; not bit for bit from frame {summary.first_divergence['frame']}" if short
-            else ": the same events and modes at every frame, every part within it; not "
-                 f"bit for bit: {summary.first_divergence['text']}")
+        text = within_tolerance_text(summary, short=short)
+        if summary.physics_changed and not short:
+            text += "\n" + _physics_note(summary.physics_changed, path)
         text += _departure_text(summary, short, since=True)
     else:
         text = f"DIVERGED{'' if short else ':'} {summary.first_divergence['text']}"
-        beyond = getattr(summary, "beyond_tolerance", None)
-        if beyond:
-            text += (f" (beyond the tolerance: {beyond})" if short else
-                     f"\nbeyond the tolerance ({_tolerance_text(summary)}): {beyond}")
+        text += beyond_tolerance_text(summary, short=short)
         if summary.physics_changed:
             text += (f" (made with other physics defaults: {', '.join(summary.physics_changed)};"
                      f" vade-replay {path} --as-recorded replays it with them)" if short
@@ -587,11 +584,6 @@ def _verdict(summary, overrides: dict[str, str], *, short: bool = False,
         for miss in getattr(summary, "release_misses", []):
             text += "\n" + miss_line(miss)
     return text
-
-
-def _tolerance_text(summary) -> str:
-    given = summary.tolerance
-    return Tolerance(given["distance_m"], given["angle_rad"]).describe()
 
 
 def _departure_text(summary, short: bool, *, since: bool = False) -> str:

@@ -63,72 +63,130 @@ def test_round_off_is_within_the_tolerance_and_a_millimetre_is_not(tmp_path):
     assert held.tolerance == {"distance_m": 1e-9, "angle_rad": 1e-9}
     far = replay(Recording(large), tolerance=Tolerance(1e-9, 1e-9))
     assert far.within_tolerance is False
-    assert far.beyond_tolerance == "peg is 0.001 m from the recording's position at frame 100"
+    assert far.beyond_tolerance == ("frame 100 (t = 1.666667 s): /parts parts[peg].position is "
+                                    "0.001 m from the recording's (tolerance 1e-09 m)")
     # A golden that matches bit for bit is within any tolerance, 0 included.
     exact = replay(Recording(GOLDEN), tolerance=Tolerance(0.0, 0.0))
     assert exact.match and exact.within_tolerance is True
 
 
-def _edited(tmp_path: Path, name: str, topic: str, frame: int, change) -> Path:
-    """The golden with ``change(message)`` applied to ``topic``'s message of ``frame``."""
+def _edited(tmp_path: Path, name: str, topic: str, frame: int, change,
+            golden: Path = GOLDEN) -> Path:
+    """``golden`` with ``change(message)`` applied to ``topic``'s message of ``frame``
+    (None drops it)."""
     counts: dict[str, int] = {}
+    frames: dict[str, int] = {}
 
     def edit(t, index, data):
         if t != topic:
             return data
         msg = json.loads(data)
-        if msg.get("frame") != frame:
+        # (Transforms carry no frame number: counted, one a frame.)
+        at = msg.get("frame", index)
+        if at != frame:
             return data
         counts[t] = counts.get(t, 0) + 1
         msg = change(msg)
         return None if msg is None else json.dumps(msg, sort_keys=True,
                                                    separators=(",", ":")).encode()
     out = tmp_path / f"{name}.mcap"
-    copy_recording(GOLDEN, out, edit)
+    copy_recording(golden, out, edit)
     assert counts == {topic: 1}, f"no {topic} message at frame {frame}"
     return out
 
 
-def _release_velocity(msg):
-    msg["linear_velocity"][2] *= 1.0 + 1e-12
+def _set(*path_and_value):
+    """An edit setting ``msg[k1][k2]... = value`` (a function of the old value)."""
+    *path, value = path_and_value
+
+    def change(msg):
+        inner = msg
+        for key in path[:-1]:
+            inner = inner[key]
+        inner[path[-1]] = value(inner[path[-1]])
+        return msg
+    return change
+
+
+def _ghost(msg):
+    msg["parts"].append({**msg["parts"][0], "name": "ghost"})
     return msg
 
 
-def _release_hand(msg):
-    msg["hand"] = "left_hand"
-    return msg
+SHAFT = RECORDINGS / "shaft_placed.mcap"  # a base in the left hand; a key frame each second
+
+CASES = [
+    # Round-off in the numbers of motion: within.
+    ("velocity_bits", "/events/PartReleased", 84, _set("linear_velocity", 2,
+                                                        lambda v: v * (1 + 1e-12)), None),
+    ("instant_ns", "/events/ContactMade", 115, _set("time_ns", lambda t: t + 1), None),
+    ("pose_bits", "/parts", 100, _set("parts", 0, "position", 2, lambda z: z + 1e-12), None),
+    # Past the tolerance in them, in any field that holds one.
+    ("velocity", "/parts", 100, _set("parts", 0, "linear_velocity", 0, lambda v: v + 50.0),
+     "frame 100 (t = 1.666667 s): /parts parts[peg].linear_velocity is 50 m/s from the "
+     "recording's (tolerance 1e-09 m/s)"),
+    ("spin", "/parts", 100, _set("parts", 0, "angular_velocity", 1, lambda w: 99.0),
+     "/parts parts[peg].angular_velocity is 99 rad/s"),
+    ("turned", "/parts", 100, _set("parts", 0, "xyzw", lambda q: [0.0, 0.0, 1.0, 0.0]),
+     "/parts parts[peg].xyzw is 3.14 rad"),
+    ("nan", "/parts", 100, _set("parts", 0, "position", 2, lambda z: math.nan),
+     "/parts parts[peg].position is nan m"),
+    ("release", "/events/PartReleased", 84, _set("linear_velocity", 2, lambda v: 1000.0),
+     "/events/PartReleased linear_velocity is 1e+03 m/s"),
+    ("instant_s", "/events/ContactMade", 115, _set("time_ns", lambda t: t + 10**9),
+     "/events/ContactMade time_ns is -1000000000 ns from the recording's (tolerance 1 ns)"),
+    ("transform", "/foxglove/transforms", 100,
+     _set("transforms", 0, "translation", "x", lambda x: x + 1.0),
+     "/foxglove/transforms transforms[peg].translation is 1 m"),
+    # What happened, or what is listed, is not the same: exactly the recording's or beyond.
+    ("hand", "/events/PartReleased", 84, _set("hand", lambda h: "left_hand"),
+     "frame 84 (t = 1.400000 s): /events/PartReleased hand: recorded 'left_hand', replayed "
+     "'right_hand'"),
+    ("missing", "/events/ContactMade", 115, lambda m: None,
+     "frame 115 (t = 1.916667 s): the recording has messages /parts, /foxglove/transforms, "
+     "ModeChanged; the replay /parts, /foxglove/transforms, ContactMade, ModeChanged"),
+    ("mode", "/parts", 100, _set("parts", 0, "mode", lambda m: "STATIC"),
+     "/parts parts[peg].mode: recorded 'STATIC', replayed 'INSPACE'"),
+    ("no_parts", "/parts", 100, lambda m: None,
+     "the recording has messages /foxglove/transforms; the replay /parts"),
+    ("ghost", "/parts", 60, _ghost, "/parts parts lists 2 in the recording, 1 in the replay"),
+    ("time", "/parts", 100, _set("time_ns", lambda t: t + 12_000),
+     "/parts time_ns: recorded 1666678666, replayed 1666666666"),
+]
+BASE_CASES = [
+    ("base_moved", "/parts", 30, _set("base", "position", 0, lambda x: x + 1.0),
+     "frame 30 (t = 0.500000 s): /parts base.position is 1 m from the recording's"),
+    ("base_mode", "/parts", 30, _set("base", "mode", lambda m: "STATIC"),
+     "/parts base.mode: recorded 'STATIC', replayed 'INHAND'"),
+    ("base_gone", "/parts", 30, _set("base", lambda b: None),
+     "/parts base: recorded None, replayed {"),
+]
 
 
-def _mode(msg):
-    msg["parts"][0]["mode"] = "STATIC"  # the peg is in flight at frame 100
-    return msg
-
-
-@pytest.mark.parametrize("name, topic, frame, change, within, beyond", [
-    # An event's numbers (the release velocity) in their last bits: the same events.
-    ("velocity", "/events/PartReleased", 84, _release_velocity, True, None),
-    # A contact's instant a nanosecond later: found by a root search, round-off too.
-    ("instant", "/events/ContactMade", 115, lambda m: {**m, "time_ns": m["time_ns"] + 1},
-     True, None),
-    # What happened is not the same: another hand let go, an event missing, another mode.
-    ("hand", "/events/PartReleased", 84, _release_hand, False,
-     "events differ at frame 84 (t = 1.400000 s): recorded PartReleased peg (released), "
-     "ModeChanged peg (released); replayed PartReleased peg (released), ModeChanged peg "
-     "(released) (the same events, other fields)"),
-    ("missing", "/events/ContactMade", 115, lambda m: None, False,
-     "events differ at frame 115 (t = 1.916667 s): recorded ModeChanged peg "
-     "(hit_environment); replayed ContactMade peg (hit_environment), ModeChanged peg "
-     "(hit_environment)"),
-    ("mode", "/parts", 100, _mode, False,
-     "peg is INSPACE at frame 100, where the recording has it STATIC"),
-])
-def test_events_and_modes_must_be_the_same_but_for_their_numbers(tmp_path, name, topic, frame,
-                                                                change, within, beyond):
-    path = _edited(tmp_path, name, topic, frame, change)
+@pytest.mark.parametrize("name, topic, frame, change, beyond",
+                         [(*case, ) for case in CASES] + [(*case,) for case in BASE_CASES],
+                         ids=[c[0] for c in CASES + BASE_CASES])
+def test_every_field_is_the_recordings_but_for_round_off_in_motion(tmp_path, name, topic, frame,
+                                                                  change, beyond):
+    golden = SHAFT if name.startswith("base") else GOLDEN
+    path = _edited(tmp_path, name, topic, frame, change, golden)
     summary = replay(Recording(path), tolerance=Tolerance(1e-9, 1e-9))
     assert not summary.match
-    assert summary.within_tolerance is within
-    assert summary.beyond_tolerance == beyond
+    if beyond is None:
+        assert summary.within_tolerance is True and summary.beyond_tolerance is None
+    else:
+        assert summary.within_tolerance is False
+        assert beyond in summary.beyond_tolerance, summary.beyond_tolerance
+
+
+def test_a_recording_made_with_other_physics_is_beyond_round_off():
+    """``data/legacy_full_drop_on_table.mcap`` was made before several defaults changed
+    (the held peg's velocity was fitted otherwise): 0.23 m/s is no round-off."""
+    legacy = Path(__file__).resolve().parent / "data" / "legacy_full_drop_on_table.mcap"
+    summary = replay(Recording(legacy), tolerance=Tolerance(1e-9, 1e-9))
+    assert summary.physics_changed and summary.within_tolerance is False
+    assert summary.beyond_tolerance.startswith(
+        "frame 75 (t = 1.250000 s): /parts parts[peg].linear_velocity is 0.227 m/s")
 
 
 def test_the_commands_exit_0_within_the_tolerance_and_say_so(tmp_path):
@@ -137,13 +195,14 @@ def test_the_commands_exit_0_within_the_tolerance_and_say_so(tmp_path):
     assert result.returncode == 1 and result.stdout.startswith("DIVERGED")
     result = run_cli("vade-replay", str(small), "--tolerance", "1e-9")
     assert result.returncode == 0, result.stderr
-    assert result.stdout.startswith("match within the tolerance (1e-09 m, 1e-09 rad): the "
-                                    "same events and modes at every frame")
+    assert result.stdout.startswith("match within the tolerance (1e-09 m, 1e-09 rad): every "
+                                    "message the recording's but for round-off in motion")
     assert "first divergence at frame 100" in result.stdout
     result = run_cli("vade-replay", str(large), "--tolerance", "1um")
     assert result.returncode == 1
-    assert ("beyond the tolerance (1e-06 m, 1e-06 rad): peg is 0.001 m from the recording's "
-            "position at frame 100") in result.stdout
+    assert ("beyond the tolerance (1e-06 m, 1e-06 rad): frame 100 (t = 1.666667 s): /parts "
+            "parts[peg].position is 0.001 m from the recording's (tolerance 1e-06 m)"
+            ) in result.stdout
     summary = json.loads(run_cli("vade-replay", str(small), "--tolerance", "1e-9",
                                  "--json").stdout)
     assert summary["match"] is False and summary["within_tolerance"] is True
@@ -186,7 +245,7 @@ def test_goldens_checked_on_another_machine(tmp_path):
     assert result.stdout == (f"{folder / 'drop_on_table.mcap'}: match within the tolerance "
                              "(1e-09 m, 1e-09 rad); not bit for bit from frame 100\n")
     result = run_cli("vade-goldens", "--dir", str(folder), "--tolerance", "1e-9")
-    assert result.returncode == 2 and "--tolerance is for --check" in result.stderr
+    assert result.returncode == 2 and "--tolerance: only with --check" in result.stderr
 
 
 def test_a_recording_made_with_other_principal_axes_is_the_same_session_to_round_off():

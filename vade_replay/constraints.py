@@ -30,7 +30,7 @@ from typing import Final
 import numpy as np
 
 from . import spatial as sp
-from .arrays import dots
+from .arrays import dots, norms
 
 DEFAULT_DISTANCE_TOLERANCE_M = 0.005
 DEFAULT_ANGLE_TOLERANCE_DEG = 10.0
@@ -122,7 +122,7 @@ def _axis_distance(vertices: np.ndarray, point: sp.Vec3, direction: sp.Vec3) -> 
     rel = vertices - np.asarray(point)
     along = dots(rel, direction)
     perp = rel - np.outer(along, np.asarray(direction))
-    return np.sqrt(dots(perp, perp))
+    return norms(perp)
 
 
 # An edge between two corners at one distance from the axis, each on a ring (at least
@@ -146,7 +146,7 @@ def radial_extent(vertices: np.ndarray, faces: np.ndarray, point: sp.Vec3,
     u = np.asarray(direction, dtype=np.float64)
     rel = np.asarray(vertices, dtype=np.float64) - np.asarray(point, dtype=np.float64)
     e1 = np.cross(u, (1.0, 0.0, 0.0) if abs(u[0]) < 0.9 else (0.0, 1.0, 0.0))
-    e1 /= np.sqrt(dots(e1, e1))
+    e1 /= norms(e1)
     e2 = np.cross(u, e1)
     x, y = dots(rel, e1)[faces], dots(rel, e2)[faces]    # (n, 3): the shadow's corners
     most = np.sqrt((x * x + y * y).max(axis=1))
@@ -301,7 +301,7 @@ def _along_axis(vertices: np.ndarray, faces: np.ndarray, direction: sp.Vec3) -> 
     a shaft or bore, not its end or bottom."""
     tri = vertices[faces]
     normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    lengths = np.sqrt(dots(normals, normals))
+    lengths = norms(normals)
     along = np.abs(dots(normals, direction)) / np.where(lengths > 0.0, lengths, 1.0)
     return (lengths > 0.0) & (along <= math.sin(math.radians(1.0)))
 
@@ -329,7 +329,7 @@ def plane_feature_faces(vertices: np.ndarray, faces: np.ndarray, point: sp.Vec3,
     height = np.abs(dots(vertices - np.asarray(point), normal))
     tri = vertices[faces]
     face_normals = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    lengths = np.sqrt(dots(face_normals, face_normals))
+    lengths = norms(face_normals)
     lengths[lengths == 0.0] = 1.0
     facing = dots(face_normals, normal) / lengths > math.cos(math.radians(1.0))
     return np.nonzero((height[faces] <= tol).all(axis=1) & facing)[0]

@@ -60,7 +60,8 @@ def check(props: MassProperties, *, file: str | None, field: str) -> MassPropert
     # other two (equality only for a flat body).
     a, b, c = sp.symmetric_eigen(inertia)[0]
     slack = 1e-9 * (abs(a) + abs(b) + abs(c))
-    if a <= 0.0 or c > a + b + slack:
+    # (Finite entries near float64's top can still give an infinite moment.)
+    if not math.isfinite(a + b + c) or a <= 0.0 or c > a + b + slack:
         raise SessionError(
             f"inertia tensor has principal moments {a:.6g}, {b:.6g}, {c:.6g}: not a rigid "
             "body's (each must be positive and at most the sum of the other two)",

@@ -182,9 +182,6 @@ class Departure:
 
     def __init__(self) -> None:
         self.parts: dict[str, dict] = {}
-        # The first frame a part is in another mode than the recording's: (frame, part,
-        # recorded mode, replayed mode), or None.
-        self.first_mode_difference: tuple[int, str, str, str] | None = None
 
     def add(self, recorded: FrameRecord, replayed: FrameRecord) -> None:
         theirs = {s.name: s for s in recorded.parts}
@@ -192,8 +189,6 @@ class Departure:
             was = theirs.get(ours.name)
             if was is None:
                 continue
-            if was.mode != ours.mode and self.first_mode_difference is None:
-                self.first_mode_difference = (replayed.frame, ours.name, was.mode, ours.mode)
             far = self.parts.setdefault(ours.name, {"distance_m": 0.0, "distance_frame": None,
                                                     "angle_rad": 0.0, "angle_frame": None})
             distance = math.dist(was.position, ours.position)
@@ -211,9 +206,13 @@ class Departure:
 class Tolerance:
     """How near a replay that is not the recording bit for bit may come and still be the
     same session: another machine's round-off (``--tolerance``; the determinism contract:
-    same transitions, poses within a stated tolerance). Within it: every frame's events
-    the same but for their numbers, every part in the recording's mode, within
-    ``distance_m`` of its position and ``angle_rad`` of its orientation at every frame."""
+    the same transitions, poses within a stated tolerance). Within it, every frame's
+    messages are the recording's, field by field, but for the numbers of motion: each
+    position within ``distance_m`` (a /parts position, a transform's translation), each
+    orientation within ``angle_rad`` (the angle between the two), each linear and angular
+    velocity within those per second, and a contact's instant within ``distance_m``'s
+    metres as seconds (at 1 m/s, at least 1 ns). Names, modes, causes, hands, the parts
+    listed, frame numbers and times are the recording's exactly (``frame_beyond``)."""
 
     distance_m: float = 1e-9
     angle_rad: float = 1e-9
@@ -229,48 +228,129 @@ def parse_tolerance(text: str, *, field: str = "--tolerance") -> Tolerance:
     """``1e-9`` (metres), ``1um`` or ``0.001mm``: positions within that, orientations within
     the angle that moves a point 1 m away by as much (1 um: 1e-6 rad); ``1um,1e-5rad`` or
     ``0.01mm,0.001deg``: each its own (an angle without a unit is in radians)."""
-    distance, comma, angle = text.partition(",")
+    pieces = text.split(",")
+    if len(pieces) > 2:
+        raise ConfigError(f"{text!r}: give a distance D, or D,A (a distance and an angle)",
+                          field=field)
 
-    def number(value: str, units: dict[str, float], default_unit: str) -> float:
-        match = _WITH_UNIT.fullmatch(value)
-        try:
-            if match is not None and match.group(2) not in ("e", "E"):
-                amount, unit = match.groups()
-                if unit not in units:
-                    raise ConfigError(f"{value.strip()!r}: unknown unit {unit!r} (use "
-                                      f"{', '.join(units)})", field=field)
-                result = float(amount) * units[unit]
-            else:
-                result = float(value) * units[default_unit]
-        except ValueError:
-            raise ConfigError(f"{value.strip()!r} is not a number", field=field) from None
-        if not (math.isfinite(result) and result >= 0.0):
-            raise ConfigError(f"{value.strip()!r}: a tolerance is a finite number, 0 or more",
+    def amount(piece: str, units: dict[str, float], default: str) -> float:
+        value = _with_unit(piece, units, default, field=field)
+        if not (math.isfinite(value) and value >= 0.0):
+            raise ConfigError(f"{piece.strip()!r}: a tolerance is a finite number, 0 or more",
                               field=field)
-        return result
-    distance_m = number(distance, _LENGTH_UNITS, "m")
+        return value
+    distance_m = amount(pieces[0], _LENGTH_UNITS, "m")
     # A point 1 m from a part's reference point turned by angle_rad moves angle_rad metres.
-    angle_rad = number(angle, _ANGLE_UNITS, "rad") if comma else distance_m
+    angle_rad = amount(pieces[1], _ANGLE_UNITS, "rad") if len(pieces) == 2 else distance_m
     return Tolerance(distance_m, angle_rad)
 
 
-def _beyond(tolerance: Tolerance, departure: Departure | None,
-            event_difference: dict | None) -> str | None:
-    """Why a replay that diverged is not within ``tolerance`` of its recording, or None."""
-    if departure is None:
-        return "its recorded frames could not all be read to measure the departure"
-    if event_difference is not None:
-        return "events differ at " + event_difference["text"]
-    if departure.first_mode_difference is not None:
-        frame, part, was, now = departure.first_mode_difference
-        return f"{part} is {now} at frame {frame}, where the recording has it {was}"
-    for name, far in sorted(departure.parts.items()):
-        if far["distance_m"] > tolerance.distance_m:
-            return (f"{name} is {far['distance_m']:.3g} m from the recording's position at "
-                    f"frame {far['distance_frame']}")
-        if far["angle_rad"] > tolerance.angle_rad:
-            return (f"{name} is turned {far['angle_rad']:.3g} rad from the recording's "
-                    f"orientation at frame {far['angle_frame']}")
+def _vector(value) -> tuple[float, ...] | None:
+    """A message's vector (a list, or a transform's ``{"x", "y", "z"[, "w"]}``) as floats;
+    None if it is not one."""
+    if isinstance(value, dict):
+        keys = ("x", "y", "z", "w") if len(value) == 4 else ("x", "y", "z")
+        if set(value) != set(keys):
+            return None
+        value = [value[k] for k in keys]
+    if not isinstance(value, list) or not all(type(v) in (int, float) for v in value):
+        return None
+    return tuple(float(v) for v in value)
+
+
+def _limit_text(value: float, limit: float, unit: str) -> str:
+    shown = f"{value:.3g}"
+    if shown == f"{limit:.3g}":  # past the limit, if only in a digit .3g does not show
+        shown = repr(value)
+    return f"is {shown} {unit} from the recording's (tolerance {limit:.3g} {unit})"
+
+
+def _motion_beyond(key: str, recorded, ours, tolerance: Tolerance, event: bool) -> str | None:
+    """Why a number of motion (``key``: position, orientation, velocity, a contact's
+    instant) is past the tolerance, or None; "" where ``key`` is no such number."""
+    if key == "time_ns" and event:
+        if type(recorded) is not int or type(ours) is not int:
+            return f"recorded {recorded!r}, replayed {ours!r}"
+        limit = max(1, int(tolerance.distance_m * 1e9))  # D's metres as seconds at 1 m/s
+        return None if abs(recorded - ours) <= limit else \
+            f"is {ours - recorded:+d} ns from the recording's (tolerance {limit} ns)"
+    kinds = {"position": ("m", tolerance.distance_m), "translation": ("m", tolerance.distance_m),
+             "linear_velocity": ("m/s", tolerance.distance_m),
+             "angular_velocity": ("rad/s", tolerance.angle_rad),
+             "xyzw": ("rad", tolerance.angle_rad), "rotation": ("rad", tolerance.angle_rad)}
+    if key not in kinds:
+        return ""
+    unit, limit = kinds[key]
+    a, b = _vector(recorded), _vector(ours)
+    size = 4 if unit == "rad" else 3
+    if a is None or b is None or len(a) != size or len(b) != size:
+        return f"recorded {recorded!r}, replayed {ours!r}"
+    if unit == "rad":
+        try:
+            far = sp.quat_angle_between(a, b)  # type: ignore[arg-type]
+        except (ValueError, ZeroDivisionError):
+            far = math.nan
+    else:
+        far = math.dist(a, b)
+    # (A NaN is past any limit: ``not far <= limit``.)
+    return None if far <= limit else _limit_text(far, limit, unit)
+
+
+def _value_beyond(recorded, ours, tolerance: Tolerance, event: bool, where: str) -> str | None:
+    """Why a parsed message (or a part of it, at ``where``) is not within ``tolerance`` of
+    the replay's, or None."""
+    if isinstance(recorded, dict) and isinstance(ours, dict):
+        if list(recorded) != list(ours):
+            return f"{where or 'the message'} has fields {sorted(recorded)} in the " \
+                   f"recording, {sorted(ours)} in the replay"
+        for key, value in recorded.items():
+            here = f"{where}.{key}" if where else key
+            why = _motion_beyond(key, value, ours[key], tolerance, event)
+            if why == "":
+                why = _value_beyond(value, ours[key], tolerance, event, here)
+            elif why is not None:
+                why = f"{here} {why}" if why.startswith("is ") else f"{here}: {why}"
+            if why:
+                return why
+        return None
+    if isinstance(recorded, list) and isinstance(ours, list):
+        if len(recorded) != len(ours):
+            return f"{where} lists {len(recorded)} in the recording, {len(ours)} in the replay"
+        for i, (a, b) in enumerate(zip(recorded, ours)):
+            name = a.get("name", a.get("child_frame_id")) if isinstance(a, dict) else None
+            why = _value_beyond(a, b, tolerance, event,
+                                f"{where}[{name if isinstance(name, str) else i}]")
+            if why:
+                return why
+        return None
+    if type(recorded) is type(ours) and recorded == ours \
+            and (type(recorded) is not float or math.copysign(1.0, recorded)
+                 == math.copysign(1.0, ours)):
+        return None
+    return f"{where}: recorded {recorded!r}, replayed {ours!r}"
+
+
+def frame_beyond(recorded: list[tuple[str, bytes]], ours: list[tuple[str, bytes]],
+                 tolerance: Tolerance) -> str | None:
+    """Why a frame's recorded messages are not within ``tolerance`` of the replay's
+    (``Tolerance``), or None: the same messages, field by field, but for the numbers of
+    motion, each within its limit."""
+    def names(messages) -> str:
+        return ", ".join(t[len(codec.EVENT_TOPIC_PREFIX):] if t.startswith(
+            codec.EVENT_TOPIC_PREFIX) else t for t, _ in messages) or "none"
+    if [t for t, _ in recorded] != [t for t, _ in ours]:
+        return f"the recording has messages {names(recorded)}; the replay {names(ours)}"
+    for (topic, theirs), (_, mine) in zip(recorded, ours):
+        if theirs == mine:
+            continue
+        try:
+            a = codec.parse_json(theirs)
+        except ValueError:
+            return f"its {topic} message cannot be read"
+        why = _value_beyond(a, codec.parse_json(mine), tolerance,
+                            topic.startswith(codec.EVENT_TOPIC_PREFIX), "")
+        if why:
+            return f"{topic} {why}"
     return None
 
 
@@ -622,16 +702,36 @@ def _is_mass(key: str) -> bool:
                                       "max_mass_kg")
 
 
+def _number_and_unit(text: str) -> tuple[str, str] | None:
+    """``15mm`` as ``("15", "mm")``; None for text with no unit (``1e-9``, ``NaN``)."""
+    match = _WITH_UNIT.fullmatch(text)
+    if match is None or match.group(2) in ("e", "E", "Infinity", "NaN"):
+        return None  # not a unit: a plain number's reading decides
+    return match.group(1), match.group(2)
+
+
+def _with_unit(text: str, units: dict[str, float], default: str, *, field: str) -> float:
+    """``text`` as a number in ``units``' base unit: ``15mm``, or a plain number in
+    ``default``."""
+    found = _number_and_unit(text)
+    if found is not None and found[1] not in units:
+        raise ConfigError(f"{text.strip()!r}: unknown unit {found[1]!r} (use "
+                          f"{', '.join(units)})", field=field)
+    number, unit = found if found is not None else (text, default)
+    try:
+        return float(number) * units[unit]
+    except ValueError:
+        raise ConfigError(f"{text.strip()!r} is not a number", field=field) from None
+
+
 def _in_session_units(key: str, text: str, units: str) -> str:
     """``15mm``, ``1.5cm``, ``0.6 in``, ``0.015m``: a length in its own unit, as the
     session's unit writes it (a study's --set then means one length in sessions of mm and
     of metres); ``12g``, ``0.012kg``: a mass, in kg."""
-    match = _WITH_UNIT.fullmatch(text)
-    if match is None:
+    found = _number_and_unit(text)
+    if found is None:
         return text
-    number, unit = match.groups()
-    if unit in ("e", "E", "Infinity", "NaN"):
-        return text  # not a unit: JSON's reading decides
+    number, unit = found
     known = f"lengths: {', '.join(_LENGTH_UNITS)}; masses: {', '.join(_MASS_UNITS)}"
     if unit in _LENGTH_UNITS:
         if not _is_length(key):
@@ -1724,7 +1824,7 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     # And measures how far its parts go from the recording's; a plain replay does from its
     # first divergence on (before it, the two are the same bits).
     departure: Departure | None = Departure() if applied else None
-    event_difference: dict | None = None  # (with a tolerance: events, numbers aside)
+    beyond: str | None = None  # (with a tolerance: the first frame past it, and why)
     if applied:
         summary.recorded_analysis = SessionAnalysis()
     try:
@@ -1779,9 +1879,12 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
                 if applied and ours is not None and summary.first_event_change is None:
                     summary.first_event_change = _event_change(recorded.derived, ours,
                                                                 replayed, first_time)
-                if tolerance is not None and ours is not None and event_difference is None:
-                    event_difference = _event_change(recorded.derived, ours, replayed,
-                                                     first_time, numbers=False)
+                if tolerance is not None and ours is not None and beyond is None:
+                    why = frame_beyond(recorded.derived, ours, tolerance)
+                    if why is not None:
+                        t = (replayed.time_ns - (replayed.time_ns if first_time is None
+                                                 else first_time)) / 1e9
+                        beyond = f"frame {replayed.frame} (t = {t:.6f} s): {why}"
                 if writer:
                     writer.write_frame(replayed, derived)
                 if on_frame:
@@ -1829,9 +1932,8 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     if tolerance is not None:
         summary.tolerance = {"distance_m": tolerance.distance_m,
                              "angle_rad": tolerance.angle_rad}
-        summary.beyond_tolerance = None if summary.match else _beyond(
-            tolerance, None if unreadable else departure, event_difference)
-        summary.within_tolerance = summary.beyond_tolerance is None
+        summary.beyond_tolerance = beyond
+        summary.within_tolerance = beyond is None
     summary.counters = dict(collision.stats)
     summary.truncated = recording.truncated
     summary.stopped = recording.stopped
@@ -1849,40 +1951,16 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     return summary
 
 
-def _numbers_masked(value):
-    """A parsed message with each float (a velocity) and each instant (a contact's
-    ``time_ns``, found in the frame by a root search) replaced by one mark: events compared
-    for what happened, not for their numbers' last bits."""
-    if type(value) is float:
-        return "<number>"
-    if isinstance(value, list):
-        return [_numbers_masked(v) for v in value]
-    if isinstance(value, dict):
-        return {k: "<number>" if k == "time_ns" else _numbers_masked(v)
-                for k, v in value.items()}
-    return value
-
-
 def _event_change(recorded: list[tuple[str, bytes]], ours: list[tuple[str, bytes]],
-                  replayed: FrameRecord, first_time_ns: int | None, *,
-                  numbers: bool = True) -> dict | None:
+                  replayed: FrameRecord, first_time_ns: int | None) -> dict | None:
     """Where a what-if's frame's events differ from the recording's: the frame, and what
-    each run had (kind, part, cause); None where they are the same. ``numbers`` False: a
-    replay held to a tolerance, whose events may differ in their numbers alone (each
-    event's other fields, its kind, part, cause, modes and hand, must be the same)."""
+    each run had (kind, part, cause); None where they are the same."""
     def events(messages):
         return [(topic, data) for topic, data in messages
                 if topic.startswith(codec.EVENT_TOPIC_PREFIX)]
     theirs, mine = events(recorded), events(ours)
     if theirs == mine:
         return None
-    if not numbers:
-        try:
-            if [(t, _numbers_masked(codec.parse_json(d))) for t, d in theirs] \
-                    == [(t, _numbers_masked(codec.parse_json(d))) for t, d in mine]:
-                return None
-        except ValueError:
-            pass  # a recorded event that is not JSON: a difference
 
     def listed(messages) -> str:
         out = []
@@ -1896,13 +1974,11 @@ def _event_change(recorded: list[tuple[str, bytes]], ours: list[tuple[str, bytes
         return ", ".join(out) or "none"
     before, after = listed(theirs), listed(mine)
     t = (replayed.time_ns - (replayed.time_ns if first_time_ns is None else first_time_ns)) / 1e9
-    run = "what-if" if numbers else "replayed"
-    text = f"frame {replayed.frame} (t = {t:.6f} s): recorded {before}; {run} {after}"
+    text = f"frame {replayed.frame} (t = {t:.6f} s): recorded {before}; what-if {after}"
     if before == after:
-        text += " (the same events, other values)" if numbers else \
-            " (the same events, other fields)"
-    return {"frame": replayed.frame, "time_s": t, "recorded": before,
-            run.replace("-", "_"): after, "text": text}
+        text += " (the same events, other values)"
+    return {"frame": replayed.frame, "time_s": t, "recorded": before, "what_if": after,
+            "text": text}
 
 
 def recorded_record(frame: RecordedFrame, previous: FrameRecord | None = None) -> FrameRecord:

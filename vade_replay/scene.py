@@ -437,8 +437,11 @@ def _mesh_from_shape(shape: dict, length_factor: float, files: dict[str, bytes],
         raise SessionError(f"mesh file {name!r} holds no triangles", file=file,
                            field=f"{at}.file")
     mesh_factor = UNIT_TO_M[shape["units"]] if "units" in shape else f
-    loaded.apply_scale(mesh_factor)
-    return loaded
+    if mesh_factor == 1.0:
+        return loaded
+    # Scaled element by element (trimesh's apply_scale multiplies by a matrix, in BLAS).
+    return trimesh.Trimesh(vertices=np.asarray(loaded.vertices) * mesh_factor,
+                           faces=loaded.faces, process=False)
 
 
 def even_inertia_trace(vertices: np.ndarray, faces: np.ndarray, density: float) -> float:

@@ -202,7 +202,8 @@ def symmetric_eigen(m) -> tuple[Vec3, Mat3]:
     a symmetric 3x3 matrix (its upper triangle is read), by cyclic Jacobi rotations.
 
     Only +, -, *, / and sqrt, each rounded as IEEE 754 requires, in a fixed order: the same
-    bits on every machine. numpy's ``eigh`` goes through LAPACK and BLAS, whose kernels are
+    bits on every machine (compiled, with no fused multiply-adds: setup.py's
+    ``-ffp-contract=off``). numpy's ``eigh`` goes through LAPACK and BLAS, whose kernels are
     chosen by the CPU: two machines of one kind gave a cylinder different principal axes
     (its two equal moments leave them free) and every part's axes different round-off."""
     a = [[float(m[0][0]), float(m[0][1]), float(m[0][2])],
