@@ -38,7 +38,8 @@ def test_a_tolerance_reads_lengths_and_angles_in_their_units(text, distance_m, a
 
 @pytest.mark.parametrize("text, says", [
     ("abc", "not a number"), ("-1e-9", "0 or more"), ("nan", "finite"), ("inf", "finite"),
-    ("1zz", "unknown unit 'zz'"), ("1e-9,", "not a number"), ("1um,1mm", "unknown unit 'mm'"),
+    ("1zz", "unknown unit 'zz'"), ("1e-9,", "give a distance D, or D,A"),
+    ("1,2,3", "give a distance D, or D,A"), ("1um,1mm", "unknown unit 'mm'"),
 ])
 def test_a_bad_tolerance_is_named(text, says):
     with pytest.raises(ConfigError) as caught:

@@ -229,7 +229,7 @@ def parse_tolerance(text: str, *, field: str = "--tolerance") -> Tolerance:
     the angle that moves a point 1 m away by as much (1 um: 1e-6 rad); ``1um,1e-5rad`` or
     ``0.01mm,0.001deg``: each its own (an angle without a unit is in radians)."""
     pieces = text.split(",")
-    if len(pieces) > 2:
+    if len(pieces) > 2 or any(not piece.strip() for piece in pieces):
         raise ConfigError(f"{text!r}: give a distance D, or D,A (a distance and an angle)",
                           field=field)
 
