@@ -203,3 +203,19 @@ def beyond_tolerance_text(summary, *, short: bool) -> str:
     if short:
         return f" (beyond the tolerance: {summary.beyond_tolerance})"
     return f"\nbeyond the tolerance ({tolerance_text(summary)}): {summary.beyond_tolerance}"
+
+
+def elsewhere_text(summary, path: str, *, short: bool) -> str:
+    """A replay that diverged from a recording made on another machine or with other
+    packages (``RunSummary.made_elsewhere``), held to no tolerance: that round-off differs
+    there, and how to tell it from a changed session ("" where it was made as here)."""
+    changed = getattr(summary, "made_elsewhere", None)
+    if not changed or getattr(summary, "tolerance", None) is not None or summary.match:
+        return ""
+    if short:
+        return (f" (recorded elsewhere: {', '.join(changed)}; --tolerance 1e-9 tells "
+                "round-off from a changed session)")
+    listed = "; ".join(f"{name} {change['recorded']!r} there, {change['here']!r} here"
+                       for name, change in changed.items())
+    return (f"\nnote: recorded elsewhere ({listed}), where round-off may differ; to tell it "
+            f"from a changed session: vade-replay {path} --tolerance 1e-9")

@@ -87,6 +87,7 @@ def _check(path: Path, golden: Path, tolerance: Tolerance | None = None) -> tupl
         return "match", line
     status = f"DIVERGED {summary.first_divergence['text']}"
     status += _common.beyond_tolerance_text(summary, short=True)
+    status += _common.elsewhere_text(summary, str(golden), short=True)
     if summary.physics_changed:
         status += (f" (recorded with other physics defaults: "
                    f"{', '.join(summary.physics_changed)}; vade-replay {golden} --as-recorded "

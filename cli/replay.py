@@ -21,8 +21,8 @@ from vade_replay.tables import FRAME_TABLES, STDOUT, FrameTables, TableError, Ta
 from vade_replay.errors import VadeError
 
 from ._common import (EXIT_DIVERGED, EXIT_OK, EXIT_UNUSABLE, Progress, beyond_tolerance_text,
-                      closed_pipe, going_on_without_stdout, not_standard_output, print_json,
-                      run, within_tolerance_text)
+                      closed_pipe, elsewhere_text, going_on_without_stdout,
+                      not_standard_output, print_json, run, within_tolerance_text)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -540,6 +540,8 @@ def _verdict(summary, overrides: dict[str, str], *, short: bool = False,
     else:
         text = f"DIVERGED{'' if short else ':'} {summary.first_divergence['text']}"
         text += beyond_tolerance_text(summary, short=short)
+        if not overrides:
+            text += elsewhere_text(summary, path, short=short)
         if summary.physics_changed:
             text += (f" (made with other physics defaults: {', '.join(summary.physics_changed)};"
                      f" vade-replay {path} --as-recorded replays it with them)" if short

@@ -264,3 +264,47 @@ def test_a_recording_made_with_other_principal_axes_is_the_same_session_to_round
     # Its analysis is this run's: the same grabs, throw and catch at the same frames.
     assert summary.analysis.result() == replay(Recording(GOLDEN.with_name(
         "throw_and_catch.mcap"))).analysis.result()
+
+
+def _made_on(tmp_path: Path, src: Path, **versions) -> Path:
+    def edit_metadata(name, values):
+        return {**values, **versions} if name == "versions" else values
+    out = tmp_path / f"elsewhere_{src.stem}.mcap"
+    copy_recording(src, out, lambda topic, index, data: data, edit_metadata=edit_metadata)
+    return out
+
+
+def test_a_divergence_from_a_recording_made_elsewhere_says_so_and_what_to_run(tmp_path):
+    """A recording names the machine and packages it was made with (its ``versions``:
+    system, machine, libc, cpu, python, numpy, python-fcl, trimesh); a replay that diverges
+    from one made elsewhere says where round-off may differ, and points at --tolerance."""
+    here = Recording(GOLDEN).metadata["versions"]
+    assert {"system", "machine", "libc", "cpu"} <= set(here)
+    elsewhere = dict(system="Darwin", machine="arm64", cpu="Apple M2")
+    # Made elsewhere and the same to the bit: said in --json, no note.
+    same = _made_on(tmp_path, GOLDEN, **elsewhere)
+    summary = replay(Recording(same))
+    assert summary.match and set(summary.made_elsewhere) == {"system", "machine", "cpu"}
+    assert summary.made_elsewhere["cpu"] == {"recorded": "Apple M2", "here": here["cpu"]}
+    result = run_cli("vade-replay", str(same))
+    assert result.returncode == 0 and "note" not in result.stdout
+    # Made elsewhere and diverged: the note, with what to run.
+    other = _made_on(tmp_path, _nudged(tmp_path, 1e-12), **elsewhere)
+    lines = run_cli("vade-replay", str(other)).stdout.splitlines()
+    assert lines[0].startswith("DIVERGED")
+    assert lines[1] == (f"note: recorded elsewhere (system 'Darwin' there, '{here['system']}' "
+                        f"here; machine 'arm64' there, '{here['machine']}' here; cpu 'Apple M2' "
+                        f"there, '{here['cpu']}' here), where round-off may differ; to tell it "
+                        f"from a changed session: vade-replay {other} --tolerance 1e-9")
+    study = run_cli("vade-replay", str(other), str(GOLDEN)).stdout.splitlines()
+    assert ("(recorded elsewhere: system, machine, cpu; --tolerance 1e-9 tells round-off from "
+            "a changed session)") in study[0]
+    # Held to a tolerance, it needs no note; made here, a divergence gets none.
+    held = run_cli("vade-replay", str(other), "--tolerance", "1e-9")
+    assert held.returncode == 0 and "note" not in held.stdout
+    plain = run_cli("vade-replay", str(_nudged(tmp_path, 2e-12)))
+    assert plain.returncode == 1 and "recorded elsewhere" not in plain.stdout
+    # A recording from before the machine was kept compares what it has.
+    legacy = Recording(Path(__file__).resolve().parent / "data"
+                       / "shaft_slide_off_before_analytic4.mcap")
+    assert set(replay(legacy).made_elsewhere) <= {"python", "numpy", "python-fcl", "trimesh"}

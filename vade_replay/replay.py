@@ -31,7 +31,7 @@ from .errors import ConfigError, RecordingError, SessionError, VadeError
 from .frames import FrameRecord, TrackerFrame
 from .modes import Cause, Mode
 from .recording import (RecordedFrame, Recording, RecordingWriter, in_place,
-                        partial_output, physics_metadata)
+                        package_versions, partial_output, physics_metadata)
 from .scene import (LENGTH_FIELDS, PAPER_DEFAULTS, UNIT_TO_M, Scene, even_inertia_trace,
                     physics_from_doc)
 from .session import _DENSITY_RANGE, Session, parse, strict_json
@@ -121,6 +121,9 @@ class RunSummary:
     tolerance: dict | None = None
     within_tolerance: bool | None = None
     beyond_tolerance: str | None = None
+    # Where the recording was made otherwise than this run, in what decides round-off
+    # (``made_elsewhere``): name -> {"recorded", "here"}; {} where the same or not known.
+    made_elsewhere: dict = field(default_factory=dict)
     # Which build ran the frames (native.describe): compiled or the Python sources. Both
     # give the same bits; it says where to look when two machines disagree.
     build: str = field(default_factory=native.describe)
@@ -1685,6 +1688,24 @@ def _step_in_effect(recorded: dict, bound: str, before: float):
     return before
 
 
+# What a recording's ``versions`` metadata holds that decides a run's round-off: the
+# machine (its libm and C library, the processor's fused multiply-adds) and the numerical
+# packages (the scene's meshes and mass properties, fcl's distances).
+_ROUND_OFF_VERSIONS = ("system", "machine", "libc", "cpu", "python", "numpy", "python-fcl",
+                       "trimesh")
+
+
+def made_elsewhere(recording: Recording) -> dict:
+    """How the machine and packages a recording was made with differ from this run's, in
+    what can change round-off: name -> {"recorded", "here"}. A recording from before a
+    name was kept does not compare it."""
+    recorded = recording.metadata.get("versions", {})
+    here = package_versions()
+    return {name: {"recorded": recorded[name], "here": here[name]}
+            for name in _ROUND_OFF_VERSIONS
+            if name in recorded and recorded[name] != here.get(name)}
+
+
 def physics_changes(recording: Recording, physics, applied: dict) -> dict:
     """Physics of a replay that differs from what ``recording`` was made with (its
     ``physics`` metadata; a key it lacks is what came before that key), leaving out what
@@ -1788,6 +1809,7 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
                          units=session.doc.get("units", "m"),
                          masses_kg={p.name: p.mass_kg for p in scene.parts},
                          physics_changed=physics_changes(recording, scene.physics, applied),
+                         made_elsewhere=made_elsewhere(recording),
                          warnings=_introduced(session, recording.session) if applied else [],
                          not_applied=absent)
     summary.warnings += [f"--set {key} not applied: {why}" for key, why in absent.items()]
