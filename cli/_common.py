@@ -192,7 +192,7 @@ def within_tolerance_text(summary, *, short: bool) -> str:
         return (f"match within the tolerance ({tolerance_text(summary)}); not bit for bit "
                 f"from frame {summary.first_divergence['frame']}")
     return (f"match within the tolerance ({tolerance_text(summary)}): every message the "
-            "recording's but for round-off in motion; not bit for bit: "
+            "recording's but for motion within the tolerance; not bit for bit: "
             f"{summary.first_divergence['text']}")
 
 

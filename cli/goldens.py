@@ -166,6 +166,7 @@ def main(argv: list[str] | None = None) -> int:
         with _common.going_on_without_stdout():
             return _regenerate(folder, sessions)
     counts = {"match": 0, "diverged": 0, "stale": 0, "unusable": 0}
+    within = 0  # of the matches, those not bit for bit but within --tolerance
     for path in sessions:
         golden = path.with_suffix(".mcap")
         try:
@@ -179,10 +180,13 @@ def main(argv: list[str] | None = None) -> int:
             counts["unusable"] += 1
             continue
         counts[outcome] += 1
+        within += line.startswith("match within")
         print(f"{golden}: {line}")
     if len(sessions) > 1:
-        print(f"{len(sessions)} goldens: {counts['match']} match, {counts['diverged']} "
-              f"diverged, {counts['stale']} stale, {counts['unusable']} could not be replayed")
+        print(f"{len(sessions)} goldens: {counts['match']} match"
+              + (f" ({within} within the tolerance)" if within else "")
+              + f", {counts['diverged']} diverged, {counts['stale']} stale, "
+              f"{counts['unusable']} could not be replayed")
     return EXIT_UNUSABLE if counts["unusable"] else \
         EXIT_DIVERGED if counts["diverged"] or counts["stale"] else EXIT_OK
 

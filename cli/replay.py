@@ -14,8 +14,9 @@ from typing import Iterator, TextIO
 
 from vade_replay.errors import ConfigError
 from vade_replay.recording import Recording, ensure_writable
-from vade_replay.replay import (ANALYSIS_COLUMNS, Tolerance, analysis_rows, apply_overrides,
-                                describe_departure, miss_line, parse_tolerance, replay)
+from vade_replay.replay import (ANALYSIS_COLUMNS, WHAT_IF_TOLERANCE, Tolerance, analysis_rows,
+                                apply_overrides, describe_departure, miss_line,
+                                parse_tolerance, replay)
 from vade_replay.tables import FRAME_TABLES, STDOUT, FrameTables, TableError, TableFile
 
 from vade_replay.errors import VadeError
@@ -118,9 +119,7 @@ def main(argv: list[str] | None = None) -> int:
     overrides = _overrides(args.set)
     args.tolerance = None if args.tolerance is None else parse_tolerance(args.tolerance)
     if args.tolerance is not None and overrides:
-        raise ConfigError("a what-if (--set) departs from its recording on purpose: "
-                          "--tolerance is for checking a replay as it was recorded",
-                          field="--tolerance")
+        raise ConfigError(WHAT_IF_TOLERANCE, field="--tolerance")
     if args.spawn and not args.rerun:
         raise ConfigError("--spawn opens the review: give --rerun OUT.rrd too", field="--spawn")
     if args.jobs < 0:

@@ -141,7 +141,7 @@ def test_set_values_may_carry_a_mass_or_length_unit_and_an_unknown_one_is_named(
     assert _in_session_units("physics.grab_radius", "5cm", "m") == repr(0.05)
     assert _in_session_units("physics.grab_radius", "1e-3", "m") == "1e-3"
     with pytest.raises(ConfigError, match="unknown unit 'ft' .lengths: m, mm, in, cm, um, "
-                                          "µm; masses: kg, g"):
+                                          "µm, nm; masses: kg, g"):
         _in_session_units("parts.peg.mass", "3ft", "m")
     with pytest.raises(ConfigError, match="has a mass unit, and this is not a mass"):
         _in_session_units("physics.grab_radius", "3g", "m")

@@ -220,9 +220,9 @@ class Tolerance:
     distance_m: float = 1e-9
     angle_rad: float = 1e-9
 
-    def describe(self) -> str:
-        return f"{self.distance_m:.3g} m, {self.angle_rad:.3g} rad"
 
+WHAT_IF_TOLERANCE = ("a what-if (--set) departs from its recording on purpose: --tolerance "
+                     "is for checking a replay as it was recorded")
 
 _ANGLE_UNITS = {"rad": 1.0, "mrad": 1e-3, "urad": 1e-6, "µrad": 1e-6, "deg": math.pi / 180.0}
 
@@ -258,7 +258,10 @@ def _vector(value) -> tuple[float, ...] | None:
         value = [value[k] for k in keys]
     if not isinstance(value, list) or not all(type(v) in (int, float) for v in value):
         return None
-    return tuple(float(v) for v in value)
+    try:
+        return tuple(float(v) for v in value)
+    except OverflowError:  # an integer past float64's range (json reads it so)
+        return None
 
 
 def _limit_text(value: float, limit: float, unit: str) -> str:
@@ -274,9 +277,9 @@ def _motion_beyond(key: str, recorded, ours, tolerance: Tolerance, event: bool) 
     if key == "time_ns" and event:
         if type(recorded) is not int or type(ours) is not int:
             return f"recorded {recorded!r}, replayed {ours!r}"
-        limit = max(1, int(tolerance.distance_m * 1e9))  # D's metres as seconds at 1 m/s
+        limit = max(1.0, tolerance.distance_m * 1e9)  # D's metres as seconds at 1 m/s
         return None if abs(recorded - ours) <= limit else \
-            f"is {ours - recorded:+d} ns from the recording's (tolerance {limit} ns)"
+            f"is {ours - recorded:+d} ns from the recording's (tolerance {limit:.3g} ns)"
     kinds = {"position": ("m", tolerance.distance_m), "translation": ("m", tolerance.distance_m),
              "linear_velocity": ("m/s", tolerance.distance_m),
              "angular_velocity": ("rad/s", tolerance.angle_rad),
@@ -286,13 +289,16 @@ def _motion_beyond(key: str, recorded, ours, tolerance: Tolerance, event: bool) 
     unit, limit = kinds[key]
     a, b = _vector(recorded), _vector(ours)
     size = 4 if unit == "rad" else 3
-    if a is None or b is None or len(a) != size or len(b) != size:
+    # (Of the message's own shape: a list where it writes a list, an object for an object.)
+    if a is None or b is None or len(a) != size or len(b) != size \
+            or type(recorded) is not type(ours):
         return f"recorded {recorded!r}, replayed {ours!r}"
     if unit == "rad":
-        try:
-            far = sp.quat_angle_between(a, b)  # type: ignore[arg-type]
-        except (ValueError, ZeroDivisionError):
-            far = math.nan
+        # The angle between two unit quaternions' rotations, 4 asin(|a - b| / 2) for the
+        # nearer of b and -b (the same rotation); of any other pair (scaled, zero) the same
+        # formula's, which is then no angle but past the limit for what is no rotation.
+        gap = min(math.dist(a, b), math.dist(a, tuple(-x for x in b)))
+        far = 4.0 * math.asin(min(1.0, 0.5 * gap)) if gap == gap else math.nan
     else:
         far = math.dist(a, b)
     # (A NaN is past any limit: ``not far <= limit``.)
@@ -303,7 +309,8 @@ def _value_beyond(recorded, ours, tolerance: Tolerance, event: bool, where: str)
     """Why a parsed message (or a part of it, at ``where``) is not within ``tolerance`` of
     the replay's, or None."""
     if isinstance(recorded, dict) and isinstance(ours, dict):
-        if list(recorded) != list(ours):
+        # (In any order, as the check by value reads another writer's text.)
+        if recorded.keys() != ours.keys():
             return f"{where or 'the message'} has fields {sorted(recorded)} in the " \
                    f"recording, {sorted(ours)} in the replay"
         for key, value in recorded.items():
@@ -686,9 +693,9 @@ def _constraint_target(doc: dict, key: str) -> dict:
     return constraints[names.index(wanted)].setdefault(leaf.split(".")[0], {})
 
 
-_WITH_UNIT = re.compile(r"\s*(-?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([A-Za-zµ]+)\s*")
+_WITH_UNIT = re.compile(r"\s*(-?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([A-Za-zµμ]+)\s*")
 # Units a --set value may carry: lengths (converted to the session's unit) and masses (kg).
-_LENGTH_UNITS = {**UNIT_TO_M, "cm": 0.01, "um": 1e-6, "µm": 1e-6}
+_LENGTH_UNITS = {**UNIT_TO_M, "cm": 0.01, "um": 1e-6, "µm": 1e-6, "nm": 1e-9}
 _MASS_UNITS = {"kg": 1.0, "g": 1e-3}
 
 
@@ -710,7 +717,8 @@ def _number_and_unit(text: str) -> tuple[str, str] | None:
     match = _WITH_UNIT.fullmatch(text)
     if match is None or match.group(2) in ("e", "E", "Infinity", "NaN"):
         return None  # not a unit: a plain number's reading decides
-    return match.group(1), match.group(2)
+    # (The Greek mu, U+03BC, typed for the micro sign, U+00B5.)
+    return match.group(1), match.group(2).replace("\u03bc", "\u00b5")
 
 
 def _with_unit(text: str, units: dict[str, float], default: str, *, field: str) -> float:
@@ -722,7 +730,9 @@ def _with_unit(text: str, units: dict[str, float], default: str, *, field: str) 
                           f"{', '.join(units)})", field=field)
     number, unit = found if found is not None else (text, default)
     try:
-        return float(number) * units[unit]
+        if "_" in number:  # (float() reads 1_000; nothing else here does)
+            raise ValueError
+        return float(number) * units[unit] + 0.0  # (+ 0.0: no -0)
     except ValueError:
         raise ConfigError(f"{text.strip()!r} is not a number", field=field) from None
 
@@ -1715,7 +1725,7 @@ def physics_changes(recording: Recording, physics, applied: dict) -> dict:
     recorded = {}
     for name, text in (recording.metadata.get("physics") or {}).items():
         try:
-            recorded[name] = json.loads(text)
+            recorded[name] = codec.parse_json(text.encode())  # (orjson: faster than json)
         except ValueError:
             recorded[name] = text
     if not recorded:
@@ -1729,7 +1739,8 @@ def physics_changes(recording: Recording, physics, applied: dict) -> dict:
         recorded["slide_step_s"] = _step_in_effect(recorded, "slide_max_step_s", 1.0 / 180.0)
     if "turn_step_s" not in recorded:
         recorded["turn_step_s"] = _step_in_effect(recorded, "turn_max_step_s", 1.0 / 120.0)
-    now = {name: json.loads(text) for name, text in physics_metadata(physics).items()}
+    now = {name: codec.parse_json(text.encode())
+           for name, text in physics_metadata(physics).items()}
     changed_on_purpose = {key[8:] for key in applied if key.startswith("physics.")}
     if "model" in changed_on_purpose:
         changed_on_purpose |= set(PAPER_DEFAULTS)
@@ -1793,8 +1804,7 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     another machine's run of the same session.
     """
     if tolerance is not None and overrides:
-        raise ConfigError("a what-if departs from its recording on purpose: --tolerance is "
-                          "for checking a replay of it as it is", field="--tolerance")
+        raise ConfigError(WHAT_IF_TOLERANCE, field="--tolerance")
     restored = None
     session = recording.session
     if as_recorded:
@@ -1901,7 +1911,7 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
                 if applied and ours is not None and summary.first_event_change is None:
                     summary.first_event_change = _event_change(recorded.derived, ours,
                                                                 replayed, first_time)
-                if tolerance is not None and ours is not None and beyond is None:
+                if tolerance is not None and divergence and beyond is None:
                     why = frame_beyond(recorded.derived, ours, tolerance)
                     if why is not None:
                         t = (replayed.time_ns - (replayed.time_ns if first_time is None
@@ -1954,8 +1964,8 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     if tolerance is not None:
         summary.tolerance = {"distance_m": tolerance.distance_m,
                              "angle_rad": tolerance.angle_rad}
-        summary.beyond_tolerance = beyond
-        summary.within_tolerance = beyond is None
+        summary.beyond_tolerance = None if summary.match else beyond
+        summary.within_tolerance = summary.beyond_tolerance is None
     summary.counters = dict(collision.stats)
     summary.truncated = recording.truncated
     summary.stopped = recording.stopped
