@@ -412,7 +412,7 @@ def test_a_what_if_names_its_first_change_in_events():
     assert lines[0].startswith("what-if (physics.gravity_scale_free=0.5): departs")
     assert lines[1] == ("first change in events: frame 108 (t = 1.800000 s): recorded none; "
                         "what-if ContactMade cylinder (hit_environment), ModeChanged cylinder "
-                        "(hit_environment)")
+                        "(hit_environment) to STATIC")
     summary = json.loads(run_cli("vade-replay", str(RECORDINGS / "throw_and_catch.mcap"),
                                  "--set", "physics.gravity_scale_free=0.5",
                                  "--json").stdout)

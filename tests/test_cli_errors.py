@@ -247,7 +247,7 @@ def test_friction_what_if_reaches_constraints_that_set_their_own():
      "physics.free_rotation_max_step_s"),
     (lambda d: d["parts"][0].pop("density") and d["parts"][0].update(mass_properties={
         "mass": 1.0, "center_of_mass": [0, 0, 0],
-        "inertia": [[1, 2, 0], [2, 1, 0], [0, 0, 1]]}), "principal moments"),
+        "inertia": [[1, 2, 0], [2, 1, 0], [0, 0, 1]]}), "principal moments -1, 1, 3 kg m^2"),
 ])
 def test_absurd_numbers_are_refused_not_simulated(tmp_path, mutate, needle):
     doc = _doc()
@@ -912,3 +912,22 @@ def test_a_mesh_edited_between_takes_is_replaced_with_a_note_and_a_log_is_refuse
     log.write_text(log.read_text().replace("\n0.5,", "\n0.5000001,", 1))
     _assert_clean_error(run_cli("vade-record", str(session), "-o", str(out)),
                         "a recording of 'shaft_placed' with other tracker input", "--force")
+
+
+def test_a_bad_set_value_is_named_by_its_set():
+    """A --set that the changed session's schema refuses is named as given (an engineer's
+    trial: "field parts[0].mass" for --set parts.sleeve.mass=-3), with the field it went to."""
+    result = run_cli("vade-replay", str(RECORDINGS / "shaft_placed.mcap"),
+                     "--set", "parts.sleeve.mass=-3")
+    assert result.returncode == 2 and result.stdout == ""
+    assert result.stderr == ("error: --set parts.sleeve.mass: -3 is less than or equal to the "
+                             "minimum of 0 (the changed session's parts[0].mass)\n")
+
+
+def test_a_file_cut_before_its_first_frame_says_how_little_it_holds(tmp_path):
+    path = tmp_path / "c10.mcap"
+    path.write_bytes((RECORDINGS / "drop_on_table.mcap").read_bytes()[:10])
+    result = run_cli("vade-replay", str(path))
+    assert result.returncode == 2
+    assert result.stderr == (f"error: {path}: cut short before its first frame: no complete "
+                             "frame to replay (the file holds only 10 bytes)\n")

@@ -401,3 +401,28 @@ def test_a_session_lasting_far_past_its_last_keyframe_is_warned_of():
     assert idle == [f"tracker.duration_s: 5000 s runs {5000 - last:g} s past the last "
                     f"keyframe (t = {last:g} s), 300,001 frames of nothing moving but what "
                     "falls: meant less?"]
+
+
+def test_dynamic_friction_above_static_is_warned_of():
+    """No material slides with more friction than holds it still; with such values a part on
+    a slope between the two slows to rest and stays, sliding at no speed (an engineer's
+    trial found it ONBASESLIDE at 0 m/s for the whole run, nothing said). Each value
+    defaults as the scene's does: a constraint's to the physics', the physics' to Physics'."""
+    doc = json.loads((RECORDINGS / "plane_block_wall.json").read_text())
+    constraint = doc["parts"][0]["assembly"]["constraints"][0]
+    assert constraint["friction"] == {"static": 0.4, "dynamic": 0.3}
+    assert make_session(doc).warnings() == []
+    doc["physics"] = {"friction_dynamic": 0.35}  # above the default static, 0.3
+    (physics,) = make_session(doc).warnings()
+    assert physics.startswith("physics: friction_dynamic 0.35 is above friction_static 0.3; "
+                              "no material has it")
+    doc["physics"] = {}
+    constraint["friction"] = {"static": 0.4, "dynamic": 0.5}
+    (mate,) = make_session(doc).warnings()
+    assert mate.startswith("parts[0].assembly.constraints[0].friction: dynamic 0.5 is above "
+                           "static 0.4")
+    constraint["friction"] = {"dynamic": 0.4}  # its static is the physics', 0.3
+    assert make_session(doc).warnings()[0].startswith(
+        "parts[0].assembly.constraints[0].friction: dynamic 0.4 is above static 0.3")
+    constraint["friction"] = {"static": 0.4, "dynamic": 0.4}  # equal: a material may
+    assert make_session(doc).warnings() == []

@@ -23,9 +23,10 @@ class VadeError(Exception):
         if self.file:
             where.append(str(self.file))
         if self.field:
-            # A command-line option is named as given (``-o``, ``--set``), a file's field
-            # as "field NAME".
-            where.append(self.field if self.field.startswith("-") else f"field {self.field}")
+            # A command-line option is named as given (``-o``, ``--set``), a tracker log's
+            # line as "line N", a file's field as "field NAME".
+            where.append(self.field if self.field.startswith(("-", "line "))
+                         else f"field {self.field}")
         if self.frame is not None:
             where.append(f"frame {self.frame}")
         prefix = ": ".join(where)

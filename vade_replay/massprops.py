@@ -63,8 +63,9 @@ def check(props: MassProperties, *, file: str | None, field: str) -> MassPropert
     # (Finite entries near float64's top can still give an infinite moment.)
     if not math.isfinite(a + b + c) or a <= 0.0 or c > a + b + slack:
         raise SessionError(
-            f"inertia tensor has principal moments {a:.6g}, {b:.6g}, {c:.6g}: not a rigid "
-            "body's (each must be positive and at most the sum of the other two)",
+            f"inertia tensor has principal moments {a:.6g}, {b:.6g}, {c:.6g} kg m^2 (in SI, "
+            "whatever the file's units): not a rigid body's (each must be positive and at "
+            "most the sum of the other two)",
             file=file, field=field)
     return props
 

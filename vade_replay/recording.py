@@ -463,6 +463,9 @@ class Recording:
             raise RecordingError("no such file", file=str(self.path))
         self.profile = None
         self.truncated = False
+        # Cut after its data's end: every frame whole, its summary and footer lost (other
+        # MCAP tools want them), read with the frames.
+        self.end_lost = False
         # Why the run that wrote it stopped before its end, if it did (``STOPPED_METADATA``).
         self.stopped: str | None = None
         # What vade-record warned of when it made it (``WARNINGS_METADATA``), read with the
@@ -515,11 +518,12 @@ class Recording:
                     "vade-record first")
         if not (first.startswith(MCAP_MAGIC) or MCAP_MAGIC.startswith(first)):
             return "not an MCAP file (it does not begin with MCAP's magic bytes)"
-        detail = str(exc) or type(exc).__name__
         if isinstance(exc, (EndOfFile, EOFError, struct.error)):
-            return (f"cut short before its first frame: no complete frame to replay "
-                    f"({detail})")
-        return f"not a readable MCAP file ({detail})"
+            # (The reader's own words, "unpack requires a buffer of 8 bytes", say nothing.)
+            size = self.path.stat().st_size
+            return (f"cut short before its first frame: no complete frame to replay (the "
+                    f"file holds only {size} byte{'s' if size != 1 else ''})")
+        return f"not a readable MCAP file ({str(exc) or type(exc).__name__})"
 
     @cached_property
     def frame_count(self) -> int | None:
@@ -542,7 +546,7 @@ class Recording:
         """Frames in the order written, streaming chunk by chunk."""
         topics: dict[int, str] = {}
         current: RecordedFrame | None = None
-        complete = data_end = False
+        complete = data_end = footer = False
         count = 0
         try:
             with open(self.path, "rb") as stream:
@@ -573,6 +577,7 @@ class Recording:
                                     else 1 << 30)]
                         else:  # DataEnd, Footer
                             complete = data_end = True
+                            footer = footer or isinstance(record, Footer)
                 except _READ_ERRORS as exc:
                     at = stream.tell()
                     if not (isinstance(exc, (EndOfFile, EOFError)) or at >= size):
@@ -591,6 +596,7 @@ class Recording:
             # whole, and the recording is not short of any.)
             self.truncated = True
             return
+        self.end_lost = not (footer and complete)  # (complete: read to its closing magic)
         if current is not None:
             yield current
         if self.stopped is not None:

@@ -820,10 +820,14 @@ def apply_overrides(session: Session, overrides: dict[str, str], *,
         # On the physics a recording was made with, where the session came so (``as_made``).
         changed = replace(changed, physics_defaults=session.physics_defaults)
         changed.build_scene()
-    except SessionError as exc:
-        raise ConfigError(exc.message, field=exc.field or "--set") from None
-    except ValueError as exc:
-        raise ConfigError(str(exc), field="--set") from None
+    except (SessionError, ValueError) as exc:
+        # Named by the --set that made it (a trial: "field parts[0].mass" for a --set of
+        # parts.sleeve.mass), with the session's field it landed in.
+        message = exc.message if isinstance(exc, SessionError) else str(exc)
+        where = exc.field if isinstance(exc, SessionError) else None
+        option = f"--set {next(iter(applied))}" if len(applied) == 1 else "--set"
+        raise ConfigError(message + (f" (the changed session's {where})" if where else ""),
+                          field=option) from None
     return changed, applied
 
 
@@ -1958,6 +1962,12 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
         # repeated as recorded).
         summary.warnings += [w for w in fallen_past_everything(scene, previous, first_time)
                              if w not in recording.warnings]
+    if recording.end_lost:
+        summary.warnings.append(
+            "the file ends after its last frame, short of its end (its summary, footer or "
+            "closing bytes: cut short there?): every frame is whole and was replayed, but "
+            f"other MCAP tools may refuse it; vade-replay {recording.path} -o WHOLE.mcap "
+            "writes it again whole")
     summary.match = summary.first_divergence is None
     summary.largest_departure = departure.result() if departure is not None \
         else None if unreadable else {}
@@ -1999,8 +2009,11 @@ def _event_change(recorded: list[tuple[str, bytes]], ours: list[tuple[str, bytes
         for topic, data in messages:
             try:
                 d = json.loads(data)
+                # (A change of mode names where to: a what-if that holds a part the
+                # recording let slide has the same events but for that.)
                 out.append(f"{topic[len(codec.EVENT_TOPIC_PREFIX):]} {d.get('part')} "
-                           f"({d.get('cause')})")
+                           f"({d.get('cause')})"
+                           + (f" to {d['to_mode']}" if d.get("to_mode") else ""))
             except (ValueError, AttributeError):
                 out.append(topic[len(codec.EVENT_TOPIC_PREFIX):])
         return ", ".join(out) or "none"

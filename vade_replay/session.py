@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Iterator
 from . import inputs
 from .errors import SessionError, VadeError
 from .frames import TrackerFrame
-from .scene import UNIT_TO_M, Scene, build_scene
+from .scene import UNIT_TO_M, Physics, Scene, build_scene
 
 if TYPE_CHECKING:
     import jsonschema
@@ -139,6 +139,33 @@ def _unlikely_densities(doc: dict) -> list[str]:
                 out.append(f"{where}.density: {rho:g} kg/m^3 is no solid's (steel is about "
                            "7850, aluminium 2700, ABS 1050); densities are in kg/m^3 "
                            "whatever the session's units")
+    return out
+
+
+def _friction_inverted(doc: dict) -> list[str]:
+    """Dynamic friction above static (the session's, or a constraint's, each defaulting to
+    the physics' and then to ``Physics``'): no material has it, and a part that slides
+    slows to rest where static friction cannot hold it, and stays, sliding at no speed."""
+    physics = doc.get("physics") or {}
+    default = Physics()
+    static = float(physics.get("friction_static", default.friction_static))
+    dynamic = float(physics.get("friction_dynamic", default.friction_dynamic))
+    why = ("no material has it: a part sliding on a slope between the two slows to rest, "
+           "where static friction cannot hold it, and stays there sliding at no speed")
+    out = []
+    if dynamic > static:
+        out.append(f"physics: friction_dynamic {dynamic:g} is above friction_static "
+                   f"{static:g}; {why}")
+    for i, part in enumerate(doc.get("parts") or []):
+        for k, c in enumerate((part.get("assembly") or {}).get("constraints") or []):
+            friction = c.get("friction") or {}
+            if not friction:
+                continue
+            s_k = float(friction.get("static", static))
+            d_k = float(friction.get("dynamic", dynamic))
+            if d_k > s_k:
+                out.append(f"parts[{i}].assembly.constraints[{k}].friction: dynamic {d_k:g} "
+                           f"is above static {s_k:g}; {why}")
     return out
 
 
@@ -309,6 +336,7 @@ class Session:
         out += _unknown_shape_keys(self.doc)
         out += _shared_constraint_names(self.doc)
         out += _unlikely_densities(self.doc)
+        out += _friction_inverted(self.doc)
         out += _unknown_body_keys(self.doc)
         tracker = self.doc["tracker"]
         if "csv" in tracker:
