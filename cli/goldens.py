@@ -62,7 +62,7 @@ def stale(session: session_mod.Session, recording: Recording) -> str | None:
 
 
 def _check(path: Path, golden: Path, tolerance: Tolerance | None = None) -> tuple[str, str]:
-    """``(outcome, line)``: match, diverged, stale or unusable."""
+    """``(outcome, line)``: match, within (the tolerance), diverged or stale."""
     session = session_mod.load(path)  # a bad session file: unusable, named
     recording = Recording(golden)
     changed = stale(session, recording)
@@ -83,8 +83,9 @@ def _check(path: Path, golden: Path, tolerance: Tolerance | None = None) -> tupl
     if summary.within_tolerance:
         line = _common.within_tolerance_text(summary, short=True)
         if summary.physics_changed:
-            line += f" (recorded with other physics defaults: {', '.join(summary.physics_changed)})"
-        return "match", line
+            line += (" (recorded with other physics defaults: "
+                     f"{', '.join(summary.physics_changed)})")
+        return "within", line
     status = f"DIVERGED {summary.first_divergence['text']}"
     status += _common.beyond_tolerance_text(summary, short=True)
     status += _common.elsewhere_text(summary, str(golden), short=True)
@@ -165,8 +166,7 @@ def main(argv: list[str] | None = None) -> int:
         # not stop it half way (``run`` still exits 141).
         with _common.going_on_without_stdout():
             return _regenerate(folder, sessions)
-    counts = {"match": 0, "diverged": 0, "stale": 0, "unusable": 0}
-    within = 0  # of the matches, those not bit for bit but within --tolerance
+    counts = {"match": 0, "within": 0, "diverged": 0, "stale": 0, "unusable": 0}
     for path in sessions:
         golden = path.with_suffix(".mcap")
         try:
@@ -180,10 +180,10 @@ def main(argv: list[str] | None = None) -> int:
             counts["unusable"] += 1
             continue
         counts[outcome] += 1
-        within += line.startswith("match within")
         print(f"{golden}: {line}")
     if len(sessions) > 1:
-        print(f"{len(sessions)} goldens: {counts['match']} match"
+        within = counts["within"]  # matches, not bit for bit but within --tolerance
+        print(f"{len(sessions)} goldens: {counts['match'] + within} match"
               + (f" ({within} within the tolerance)" if within else "")
               + f", {counts['diverged']} diverged, {counts['stale']} stale, "
               f"{counts['unusable']} could not be replayed")
