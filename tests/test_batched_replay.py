@@ -1,0 +1,124 @@
+"""A replay reads, steps and checks its frames a batch at a time (``replay._BATCH_FRAMES``,
+for speed: ``docs/DEVELOPMENT.md``). What stops it part way (a damaged chunk, an error
+stepping, an interrupt) must leave what a frame-at-a-time replay left: every frame before
+it checked, counted, shown to ``on_frame`` and written, none after it."""
+
+from __future__ import annotations
+
+import pytest
+from mcap.reader import make_reader
+
+from vade_replay import replay as rp
+from vade_replay.errors import RecordingError, VadeError
+from vade_replay.recording import Recording
+
+from conftest import RECORDINGS
+
+GOLDEN = RECORDINGS / "gear_pendulum.mcap"  # 361 frames: six batches and a part
+STEPPER = rp.Stepper
+
+
+def _frames_before_error(path) -> int:
+    count = 0
+    try:
+        for _ in Recording(path).frames():
+            count += 1
+    except RecordingError:
+        return count
+    raise AssertionError("the file was expected to be damaged")
+
+
+def _damaged(tmp_path, chunk: int):
+    data = bytearray(GOLDEN.read_bytes())
+    with open(GOLDEN, "rb") as f:
+        start = make_reader(f).get_summary().chunk_indexes[chunk].chunk_start_offset
+    at = start + 37 + 4 + 4 + 8  # the chunk's zstd frame (test_cli_errors)
+    data[at:at + 4] = b"\0\0\0\0"
+    path = tmp_path / "damaged.mcap"
+    path.write_bytes(bytes(data))
+    return path
+
+
+def test_the_batch_is_more_than_one_frame_and_the_golden_spans_several():
+    frames = Recording(GOLDEN).frame_count
+    assert rp._BATCH_FRAMES > 1 and frames is not None
+    assert frames % rp._BATCH_FRAMES != 0 and frames > 3 * rp._BATCH_FRAMES
+
+
+def test_every_frame_is_checked_once_in_order():
+    seen = []
+    summary = rp.replay(Recording(GOLDEN), on_frame=lambda f: seen.append(f.recorded.inputs.frame))
+    assert summary.match
+    expected = [f.inputs.frame for f in Recording(GOLDEN).frames()]
+    assert seen == expected and summary.frames == len(expected)
+
+
+@pytest.mark.parametrize("chunk", [1, 3])
+@pytest.mark.parametrize("batch", [25, rp._BATCH_FRAMES])
+def test_a_damaged_chunk_keeps_exactly_the_frames_before_it(tmp_path, monkeypatch, chunk,
+                                                            batch):
+    # (A chunk holds one simulated second, 60 frames here: batches of 25 end inside one.)
+    monkeypatch.setattr(rp, "_BATCH_FRAMES", batch)
+    path = _damaged(tmp_path, chunk)
+    before = _frames_before_error(path)
+    assert before == 60 * chunk
+    seen = []
+    out = tmp_path / "out.mcap"
+    with pytest.raises(RecordingError) as caught:
+        rp.replay(Recording(path), out=out, on_frame=lambda f: seen.append(f.divergence))
+    assert "damaged after" in caught.value.message and caught.value.file == str(path)
+    assert f"the {before} regenerated frames before it are kept" in caught.value.message
+    assert seen == [None] * before  # each checked, and each the recording's
+    kept = Recording(out.with_name("out.mcap.partial"))
+    assert sum(1 for _ in kept.frames()) == before
+    # and the kept frames are the recording's own, bit for bit
+    for ours, theirs in zip(kept.frames(), Recording(GOLDEN).frames()):
+        assert ours.inputs == theirs.inputs and ours.derived == theirs.derived
+
+
+class _FailingStepper:
+    """The real stepper, failing at one frame as a physics error would."""
+
+    def __init__(self, at: int, error: BaseException):
+        self.at, self.error, self.calls = at, error, 0
+
+    def __call__(self, scene, collision):
+        stepper = STEPPER(scene, collision)
+        outer = self
+
+        def advance(inputs):
+            if outer.calls == outer.at:
+                raise outer.error
+            outer.calls += 1
+            return stepper(inputs)
+        return advance
+
+
+@pytest.mark.parametrize("at", [0, 75, 120])
+def test_an_error_stepping_a_frame_comes_after_the_frames_before_it(tmp_path, monkeypatch, at):
+    monkeypatch.setattr(rp, "Stepper", _FailingStepper(at, VadeError("a physics error")))
+    seen = []
+    out = tmp_path / "out.mcap"
+    with pytest.raises(VadeError) as caught:
+        rp.replay(Recording(GOLDEN), out=out, on_frame=lambda f: seen.append(f.divergence))
+    assert caught.value.message.startswith("a physics error")
+    assert seen == [None] * at
+    partial = out.with_name("out.mcap.partial")
+    if at == 0:
+        assert not partial.exists() and not out.exists()  # nothing written, nothing left
+    else:
+        assert f"the {at} regenerated frames before it are kept" in caught.value.message
+        kept = Recording(partial)
+        assert sum(1 for _ in kept.frames()) == at and kept.stopped is not None
+
+
+def test_an_interrupt_while_stepping_keeps_the_frames_before_it(tmp_path, monkeypatch):
+    monkeypatch.setattr(rp, "Stepper", _FailingStepper(100, KeyboardInterrupt()))
+    seen = []
+    out = tmp_path / "out.mcap"
+    with pytest.raises(KeyboardInterrupt) as caught:
+        rp.replay(Recording(GOLDEN), out=out, on_frame=lambda f: seen.append(f))
+    assert len(seen) == 100
+    assert any("the 100 frames written so far are kept" in n for n in caught.value.__notes__)
+    kept = Recording(out.with_name("out.mcap.partial"))
+    assert sum(1 for _ in kept.frames()) == 100 and kept.stopped == "interrupted"
