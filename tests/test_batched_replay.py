@@ -1,7 +1,8 @@
-"""A replay reads, steps and checks its frames a batch at a time (``replay._BATCH_FRAMES``,
-for speed: ``docs/DEVELOPMENT.md``). What stops it part way (a damaged chunk, an error
-stepping, an interrupt) must leave what a frame-at-a-time replay left: every frame before
-it checked, counted, shown to ``on_frame`` and written, none after it."""
+"""A replay reads, steps and checks its frames a batch at a time, and a recording steps
+and writes them so (``replay._BATCH_FRAMES``, for speed: ``docs/DEVELOPMENT.md``). What
+stops either part way (a damaged chunk, an error stepping, an interrupt) must leave what a
+run a frame at a time left: every frame before it checked, counted, shown to ``on_frame``
+and written, none after it."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from mcap.reader import make_reader
 from vade_replay import replay as rp
 from vade_replay.errors import RecordingError, VadeError
 from vade_replay.recording import Recording
+from vade_replay.session import load
 
 from conftest import RECORDINGS
 
@@ -122,3 +124,45 @@ def test_an_interrupt_while_stepping_keeps_the_frames_before_it(tmp_path, monkey
     assert any("the 100 frames written so far are kept" in n for n in caught.value.__notes__)
     kept = Recording(out.with_name("out.mcap.partial"))
     assert sum(1 for _ in kept.frames()) == 100 and kept.stopped == "interrupted"
+
+
+@pytest.mark.parametrize("at", [0, 75, 120])
+def test_a_recording_that_fails_stepping_keeps_the_frames_before_it(tmp_path, monkeypatch, at):
+    session = load(GOLDEN.with_suffix(".json"))
+    monkeypatch.setattr(rp, "Stepper", _FailingStepper(at, VadeError("a physics error")))
+    seen = []
+    out = tmp_path / "rec.mcap"
+    with pytest.raises(VadeError) as caught:
+        rp.record(session, out, on_frame=lambda r: seen.append(r.frame))
+    assert seen == list(range(at))
+    assert not out.exists()
+    partial = out.with_name("rec.mcap.partial")
+    if at == 0:
+        assert not partial.exists()
+    else:
+        assert caught.value.frame == at  # the frame being made when it failed
+        assert f"the {at} frames before it are kept" in caught.value.message
+        kept = list(Recording(partial).frames())
+        golden = list(Recording(GOLDEN).frames())[:at]
+        assert [(f.inputs, f.derived) for f in kept] == [(f.inputs, f.derived) for f in golden]
+
+
+def test_a_recording_interrupted_while_stepping_keeps_the_frames_before_it(tmp_path,
+                                                                          monkeypatch):
+    session = load(GOLDEN.with_suffix(".json"))
+    monkeypatch.setattr(rp, "Stepper", _FailingStepper(130, KeyboardInterrupt()))
+    out = tmp_path / "rec.mcap"
+    with pytest.raises(KeyboardInterrupt) as caught:
+        rp.record(session, out)
+    assert any("the 130 frames written so far are kept" in n for n in caught.value.__notes__)
+    kept = Recording(out.with_name("rec.mcap.partial"))
+    assert sum(1 for _ in kept.frames()) == 130 and kept.stopped == "interrupted"
+
+
+def test_a_whole_recording_is_the_golden_frame_for_frame(tmp_path):
+    """Batches end inside the session and at its end (361 frames): none lost or doubled."""
+    out = tmp_path / "rec.mcap"
+    summary = rp.record(load(GOLDEN.with_suffix(".json")), out)
+    assert summary.frames == 361
+    assert [(f.inputs, f.derived) for f in Recording(out).frames()] \
+        == [(f.inputs, f.derived) for f in Recording(GOLDEN).frames()]

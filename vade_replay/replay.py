@@ -17,7 +17,7 @@ import re
 import sys
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Callable, Iterable, Iterator
+from typing import Callable, Iterable, Iterator, TypeVar
 
 import numpy as np
 
@@ -38,6 +38,8 @@ from .session import _DENSITY_RANGE, Session, parse, strict_json
 from .spatial import Pose
 from .step import Stepper, beyond_end
 
+T = TypeVar("T")
+
 
 def simulate(scene: Scene, frames: Iterable[TrackerFrame], *,
              collision: CollisionWorld | None = None) -> Iterator[FrameRecord]:
@@ -45,6 +47,43 @@ def simulate(scene: Scene, frames: Iterable[TrackerFrame], *,
     advance = Stepper(scene, collision or CollisionWorld(scene))
     for inputs in frames:
         yield advance(inputs)
+
+
+# Frames a run takes, then steps, then checks or writes, before the next ones: each stage's
+# code and data stay in the caches over the batch instead of the stages taking turns every
+# frame. On a 2-core AMD EPYC (Zen 3, 512 KiB of L2 a core) a replay of the ten-minute
+# session went from ~60-75 to ~40-60 us a frame, a recording's ~17 % faster; batches of 16
+# to 120 frames measured alike, 1 and 480 the slowest (docs/DEVELOPMENT.md). 60 frames are
+# a recording's chunk, one simulated second.
+_BATCH_FRAMES = 60
+
+
+def _take(items: Iterator[T]) -> tuple[list[T], BaseException | None]:
+    """The next ``_BATCH_FRAMES`` items (fewer at the end) and what stopped the reading
+    early (a damaged frame, an interrupt), for the caller to raise once it has done with
+    the items before it, as a run a frame at a time would have."""
+    batch: list[T] = []
+    try:
+        for item in items:
+            batch.append(item)
+            if len(batch) == _BATCH_FRAMES:
+                break
+    except BaseException as exc:
+        return batch, exc
+    return batch, None
+
+
+def _step_all(advance: Stepper, inputs: Iterable[TrackerFrame]
+              ) -> tuple[list[FrameRecord], BaseException | None]:
+    """What each of ``inputs`` steps to, in order, and what stopped it early (an error
+    stepping a frame, an interrupt): raised by the caller after the frames before it."""
+    stepped: list[FrameRecord] = []
+    try:
+        for frame in inputs:
+            stepped.append(advance(frame))
+    except BaseException as exc:
+        return stepped, exc
+    return stepped, None
 
 
 @dataclass
@@ -990,20 +1029,30 @@ def record(session: Session, out: str | Path, *,
     watch = TrackerWatch(session)
     writer = RecordingWriter(partial, session, scene)
     writer.warnings = summary.warnings
+    inputs = _watched(session.tracker_frames(), watch)
+    advance = Stepper(scene, collision)
     try:
-        for record_ in simulate(scene, _watched(session.tracker_frames(), watch),
-                                collision=collision):
-            frame = record_.frame
-            if first_time is None:
-                first_time = record_.time_ns
-            writer.write_frame(record_)
-            summary.count(record_, first_time)
-            if record_.events:
-                landed(summary.release_misses, open_misses, record_)
-                summary.release_misses += release_misses(scene, record_, first_time)
-                _opened(summary.release_misses, open_misses, record_)
-            if on_frame:
-                on_frame(record_)
+        while True:
+            # A batch at a time (``_BATCH_FRAMES``): what stops the run part way is raised
+            # after the frames before it are written.
+            batch, stopped_by = _take(inputs)
+            stepped, stepping_stopped = _step_all(advance, batch)
+            for record_ in stepped:
+                frame = record_.frame
+                if first_time is None:
+                    first_time = record_.time_ns
+                writer.write_frame(record_)
+                summary.count(record_, first_time)
+                if record_.events:
+                    landed(summary.release_misses, open_misses, record_)
+                    summary.release_misses += release_misses(scene, record_, first_time)
+                    _opened(summary.release_misses, open_misses, record_)
+                if on_frame:
+                    on_frame(record_)
+            if stepping_stopped or stopped_by:
+                raise stepping_stopped or stopped_by
+            if len(batch) < _BATCH_FRAMES:
+                break
     except VadeError as exc:
         if writer.frames and exc.frame is None and exc.field is None and frame is not None:
             exc.frame = frame + 1  # the frame being made when it failed
@@ -1785,37 +1834,6 @@ def as_made(recording: Recording) -> tuple[Session, dict | None]:
     return replace(session, physics_defaults=defaults), defaults
 
 
-# Frames a replay reads, then steps, then checks, before the next ones: each stage's code
-# and data stay in the caches over the batch instead of the three taking turns every frame.
-# On a 2-core AMD EPYC (Zen 3, 512 KiB of L2 a core) a ten-minute session went from ~70 to
-# ~50 us a frame; 8 to 600 frames measured alike, 1 the slowest (docs/DEVELOPMENT.md).
-_BATCH_FRAMES = 60
-
-
-def _read_and_step(frames: Iterator[RecordedFrame], advance: Stepper
-                   ) -> tuple[list[RecordedFrame], list[FrameRecord], BaseException | None]:
-    """The next ``_BATCH_FRAMES`` recorded frames (fewer at the recording's end) and what
-    each steps to, and what stopped either early: a damaged frame, an error stepping, an
-    interrupt. The frames read and stepped before it are the replay's as before: it
-    checks (and writes) them first, then raises it, as a replay a frame at a time would."""
-    batch: list[RecordedFrame] = []
-    stepped: list[FrameRecord] = []
-    stopped_by: BaseException | None = None  # (raised by the caller after the frames before)
-    try:
-        for recorded in frames:
-            batch.append(recorded)
-            if len(batch) == _BATCH_FRAMES:
-                break
-    except BaseException as exc:
-        stopped_by = exc
-    try:
-        for recorded in batch:
-            stepped.append(advance(recorded.inputs))
-    except BaseException as exc:  # a frame before the damaged one: its error comes first
-        return batch, stepped, exc
-    return batch, stepped, stopped_by
-
-
 def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
            out: str | Path | None = None,
            on_frame: Callable[[ReplayFrame], None] | None = None,
@@ -1898,10 +1916,13 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
         try:
             # No generators between the reader and the check, and a ReplayFrame only for an
             # on_frame: ~2 us a frame less. Read, stepped and checked a batch at a time
-            # (``_read_and_step``): ~25 % less a frame on a 2-core EPYC (vade-bench --replay).
+            # (``_BATCH_FRAMES``): ~25 % less a frame on a 2-core EPYC (vade-bench --replay).
             frames = recording.frames()
             while True:
-                batch, stepped, stopped_by = _read_and_step(frames, advance)
+                batch, stopped_by = _take(frames)
+                stepped, stepping_stopped = _step_all(advance, [r.inputs for r in batch])
+                # (A frame before the damaged one failing to step: its error comes first.)
+                stopped_by = stepping_stopped or stopped_by
                 for recorded, replayed in zip(batch, stepped):
                     if writer is None:
                         # The check by value, or by bytes where a frame lists many parts
