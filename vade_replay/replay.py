@@ -1029,9 +1029,10 @@ def record(session: Session, out: str | Path, *,
     watch = TrackerWatch(session)
     writer = RecordingWriter(partial, session, scene)
     writer.warnings = summary.warnings
-    inputs = _watched(session.tracker_frames(), watch)
-    advance = Stepper(scene, collision)
     try:
+        # (The tracker stream is opened inside: a CSV log may fail as it is read.)
+        inputs = _watched(session.tracker_frames(), watch)
+        advance = Stepper(scene, collision)
         while True:
             # A batch at a time (``_BATCH_FRAMES``): what stops the run part way is raised
             # after the frames before it are written.
