@@ -3,8 +3,10 @@
 ``vade-bench`` runs the physics work-precision benchmark: a table on the terminal, and
 ``physics.csv``, ``physics.json`` and ``work_precision.png`` (with matplotlib, the ``bench``
 extra) in the output folder. ``--replay`` runs the end-to-end replay benchmark instead
-(``replay.csv``, ``replay.json``); ``--all`` runs both. ``--short`` is the CI mode: two step
-counts, short durations, one repeat, a few seconds.
+(``replay.csv``, ``replay.json``); ``--all`` runs both. ``--instructions`` counts, under
+valgrind, the instructions a frame of each stage of a replay executes (``instructions.csv``,
+``instructions.json``). ``--short`` is the CI mode: two step counts, short durations, one
+repeat, a few seconds.
 """
 
 from __future__ import annotations
@@ -35,6 +37,10 @@ def _parser() -> argparse.ArgumentParser:
     which.add_argument("--replay", action="store_true",
                        help="run the end-to-end replay benchmark instead of the physics one")
     which.add_argument("--all", action="store_true", help="run both benchmarks")
+    which.add_argument("--instructions", action="store_true",
+                       help="count the instructions a frame of each replay stage executes, "
+                            "under valgrind (minutes): the yardstick that does not move "
+                            "with the machine's load")
     p.add_argument("--repeats", type=int, default=None, metavar="N",
                    help="timed rounds, the least is kept (default 5; 1 with --short)")
     p.add_argument("--markdown", action="store_true",
@@ -116,6 +122,20 @@ def _replay(args, out: Path, command: str) -> None:
     print(f"wrote {out / 'replay.csv'}, {out / 'replay.json'}")
 
 
+def _instructions(args, out: Path, command: str) -> None:
+    from vade_replay.bench import instructions, report
+    from vade_replay.bench import replay as replay_bench
+
+    rows = instructions.run(args.short, log=_log)
+    print(f"machine: {replay_bench.machine()}\n")
+    _print(args, [{k: v for k, v in row.items() if k != "table"} for row in rows],
+           title="Instructions a frame by stage, counted by valgrind's callgrind (setup: in "
+                 "all; a replay's check with its loop and summary: replay - stepped)")
+    report.write_csv(rows, out / "instructions.csv")
+    report.write_json(out / "instructions.json", rows=rows, command=command, short=args.short)
+    print(f"wrote {out / 'instructions.csv'}, {out / 'instructions.json'}")
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     if args.repeats is not None and args.repeats < 1:
@@ -132,6 +152,9 @@ def main(argv: list[str] | None = None) -> int:
     # Its files are written after its tables are printed: a reader of standard output
     # going away (``| head``) does not lose minutes of measurement (``run`` exits 141).
     with going_on_without_stdout():
+        if args.instructions:
+            _instructions(args, out, command)
+            return EXIT_OK
         if not args.replay:
             _physics(args, out, command)
         if args.replay or args.all:

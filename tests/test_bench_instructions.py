@@ -1,0 +1,87 @@
+"""vade-bench --instructions: callgrind's dumps read in order, the stages' arithmetic, a
+clear error without valgrind, and (``VADE_STRESS=full``, with valgrind) a real count that
+repeats to the instruction."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from types import SimpleNamespace
+
+import pytest
+
+from conftest import RECORDINGS
+from strategies import FULL
+from vade_replay.bench import instructions
+from vade_replay.cli import bench
+from vade_replay.cli._common import run
+
+
+def _dump(path, total: int) -> None:
+    # The head of a callgrind dump, as valgrind 3.19 writes it.
+    path.write_text(f"# callgrind format\nversion: 1\ncreator: callgrind-3.19.0\n"
+                    f"cmd: python\npart: 1\n\nevents: Ir\n\nsummary: {total}\n\n"
+                    f"fn=main\n1 {total}\n\ntotals: {total}\n")
+
+
+def test_dumps_are_read_in_the_order_callgrind_wrote_them(tmp_path):
+    prefix = tmp_path / "callgrind.out"
+    # .10 after .9 (not after .1, as the names sort), the unnumbered file last.
+    for k in range(1, 12):
+        _dump(tmp_path / f"callgrind.out.{k}", 1000 * k)
+    _dump(prefix, 7)
+    (tmp_path / "callgrind.out.notes").write_text("not a dump")
+    assert instructions.dump_totals(prefix) == [1000 * k for k in range(1, 12)] + [7]
+
+
+def test_a_dump_without_a_total_is_an_error(tmp_path):
+    prefix = tmp_path / "callgrind.out"
+    (tmp_path / "callgrind.out.1").write_text("# callgrind format\nevents: Ir\n")
+    with pytest.raises(RuntimeError, match=r"callgrind.out.1: no instruction total"):
+        instructions.dump_totals(prefix)
+
+
+def test_each_stage_is_its_own_dump_and_the_step_is_what_stepping_adds():
+    # warm-up, then per session: floor, setup, frames, stepped, replay; then the rest.
+    totals = [10**9,
+              1000, 300, 400, 900, 1500,     # a: 10 frames
+              2000, 100, 800, 1700, 3000,    # b: 20 frames
+              5]
+    a, b = instructions.rows_from(["a", "b"], [10, 20], totals)
+    assert (a["session"], a["frames"], a["setup"]) == ("a", 10, 300)
+    assert a["floor_per_frame"] == 100 and a["frames_read_per_frame"] == 40
+    assert a["step_per_frame"] == (900 - 300 - 400) / 10
+    assert a["check_and_loop_per_frame"] == (1500 - 900) / 10
+    assert a["replay_per_frame"] == 150
+    assert a["replay_over_floor"] == 1.5 and a["after_setup_over_floor"] == 1.2
+    assert b["step_per_frame"] == (1700 - 100 - 800) / 20 and b["replay_over_floor"] == 1.5
+    with pytest.raises(RuntimeError, match="callgrind wrote 6 dumps, 11 were expected"):
+        instructions.rows_from(["a", "b"], [10, 20], totals[:6])
+
+
+def test_without_valgrind_it_says_so_and_exits_2(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(instructions, "shutil", SimpleNamespace(which=lambda name: None))
+    code = run(bench.main, ["--instructions", "--short", "-o", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "--instructions" in err and "valgrind" in err and "Traceback" not in err
+    assert not (tmp_path / "instructions.json").exists()
+
+
+@pytest.mark.stress
+@pytest.mark.skipif(not FULL, reason="two runs under valgrind, ~2 min: VADE_STRESS=full")
+@pytest.mark.skipif(shutil.which("valgrind") is None, reason="needs valgrind")
+def test_a_count_repeats_to_the_instruction_and_adds_up(tmp_path):
+    """Two counts of the same golden in separate processes (hash seed fixed): the per-frame
+    figures are equal to the instruction; every stage is there and none is negative."""
+    path = RECORDINGS / "drop_on_table.mcap"
+    first, = instructions.count([path])
+    second, = instructions.count([path])
+    per_frame = [k for k in first if k.endswith("_per_frame")]
+    assert {k: first[k] for k in per_frame} == {k: second[k] for k in per_frame}
+    assert first["frames"] == 151 and first["setup"] > 0
+    assert all(first[k] > 0 for k in per_frame)
+    # A replay does at least what reading does, and more than stepping alone adds.
+    assert first["replay_per_frame"] > first["floor_per_frame"]
+    assert first["replay_per_frame"] > first["step_per_frame"] + first["check_and_loop_per_frame"]
+    json.dumps(first)  # the row is what the JSON file holds

@@ -1,0 +1,172 @@
+"""Instructions a frame, counted by valgrind: ``vade-bench --instructions``.
+
+Wall time on a shared machine moves 20-40 % between runs minutes apart (BENCHMARKS.md), more
+than most changes to the per-frame code are worth. The instructions a replay executes do
+not move: counted by valgrind's callgrind they repeat to a few parts in a million, so a
+change can be held to the code before it without the machine's noise. They are not time
+(on a machine whose caches are small, a frame's cost follows the memory it touches too),
+so the targets stay the timed ``vade-bench --replay``'s; this is the yardstick for the work
+towards them.
+
+One process under callgrind replays every session once to warm up (imports, first-use
+caches), then runs each stage of each session in turn with a marker call between stages
+(``zlib.adler32``: callgrind's ``--dump-before`` writes the counts since the last marker,
+nothing else here calls it). Stages, each from the file on disk:
+
+- ``floor``: ``recording.read_and_decode``, what the replay target is held to;
+- ``setup``: the recording opened, its scene built with its collision models;
+- ``frames``: the recording's frames read (the tracker decoded into the step's objects);
+- ``stepped``: setup, frames read and stepped, as a replay steps them (``replay._stepped``);
+- ``replay``: ``replay.replay``, checking every message (it must match).
+
+Derived, per frame: the step (``stepped - setup - frames``), the check with the replay's own
+loop and summary (``replay - stepped``), and the replay against the floor, with and without
+its setup.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from ..errors import ConfigError
+
+STAGES = ("floor", "setup", "frames", "stepped", "replay")
+_MARKER = "zlib_adler32"  # the C function of zlib.adler32, the stages' marker
+
+# Run under callgrind: argv is the recordings. Prints their frame counts as JSON.
+_SCRIPT = """
+import json, sys, zlib
+from vade_replay.collision import CollisionWorld
+from vade_replay.recording import Recording, read_and_decode
+from vade_replay.replay import Stepper, _INPUTS, _stepped, replay
+
+def setup(path):
+    scene = Recording(path).session.build_scene()
+    CollisionWorld(scene)
+
+def frames(path):
+    for _ in Recording(path).frames():
+        pass
+
+def stepped(path):
+    recording = Recording(path)
+    scene = recording.session.build_scene()
+    advance = Stepper(scene, CollisionWorld(scene))
+    for _ in _stepped(recording.frames(), advance, _INPUTS):
+        pass
+
+def check(path):
+    summary = replay(Recording(path))
+    if not summary.match:
+        raise SystemExit(f"{path}: the replay diverged: {summary.first_divergence}")
+    return summary.frames
+
+paths = sys.argv[1:]
+counts = [check(p) for p in paths]  # warm: imports and first-use caches, and it matches
+for p in paths:
+    read_and_decode(p)
+mark = zlib.adler32
+mark(b"")
+for p in paths:
+    read_and_decode(p); mark(b"")
+    setup(p); mark(b"")
+    frames(p); mark(b"")
+    stepped(p); mark(b"")
+    check(p); mark(b"")
+print(json.dumps(counts))
+"""
+
+
+def valgrind() -> str:
+    """The valgrind to count with, or a ConfigError saying how to get one."""
+    found = shutil.which("valgrind")
+    if found is None:
+        raise ConfigError("counting instructions needs valgrind, which is not on PATH "
+                          "(Debian: apt-get install valgrind)", field="--instructions")
+    return found
+
+
+def dump_totals(prefix: Path) -> list[int]:
+    """The instruction totals of callgrind's dumps ``prefix.1``, ``prefix.2``, ... in order
+    (each the count since the dump before), then of ``prefix`` itself (what ran after the
+    last dump)."""
+    numbered = sorted((int(p.name.rsplit(".", 1)[1]), p)
+                      for p in prefix.parent.glob(prefix.name + ".*")
+                      if p.name.rsplit(".", 1)[1].isdigit())
+    files = [p for _, p in numbered] + ([prefix] if prefix.exists() else [])
+    totals = []
+    for path in files:
+        match = re.search(r"^(?:summary|totals):\s*(\d+)", path.read_text(), re.MULTILINE)
+        if match is None:
+            raise RuntimeError(f"{path}: no instruction total in callgrind's dump")
+        totals.append(int(match.group(1)))
+    return totals
+
+
+def rows_from(names: list[str], frames: list[int], totals: list[int]) -> list[dict]:
+    """The table's rows from the dumps' totals: the first is the warm-up, then one for each
+    stage of each session in order (``STAGES``), then what ran after the last marker."""
+    need = 1 + len(STAGES) * len(names)
+    if len(totals) < need:
+        raise RuntimeError(f"callgrind wrote {len(totals)} dumps, {need} were expected")
+    rows = []
+    for k, (name, n) in enumerate(zip(names, frames)):
+        stage = dict(zip(STAGES, totals[1 + k * len(STAGES):1 + (k + 1) * len(STAGES)]))
+        step = stage["stepped"] - stage["setup"] - stage["frames"]
+        check = stage["replay"] - stage["stepped"]
+        rows.append({
+            "table": "instructions", "session": name, "frames": n,
+            "floor_per_frame": round(stage["floor"] / n),
+            "setup": stage["setup"], "frames_read_per_frame": round(stage["frames"] / n),
+            "step_per_frame": round(step / n),
+            "check_and_loop_per_frame": round(check / n),
+            "replay_per_frame": round(stage["replay"] / n),
+            "replay_over_floor": stage["replay"] / stage["floor"],
+            "after_setup_over_floor": (stage["replay"] - stage["setup"]) / stage["floor"]})
+    return rows
+
+
+def count(paths: list[Path], log=None) -> list[dict]:
+    """Count each stage of each recording in one process under callgrind (minutes: every
+    instruction is run on valgrind's simulated CPU, ~50x slower)."""
+    log = log or (lambda text: None)
+    tool = valgrind()
+    env = dict(os.environ, PYTHONHASHSEED="0",
+               # (A BLAS thread spinning while it waits for work would be counted too.)
+               OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
+    with tempfile.TemporaryDirectory(prefix="vade-bench-cg-") as tmp:
+        prefix = Path(tmp) / "callgrind.out"
+        log(f"instructions: {len(paths)} recordings under callgrind")
+        done = subprocess.run(
+            [tool, "--tool=callgrind", f"--callgrind-out-file={prefix}",
+             f"--dump-before={_MARKER}", sys.executable, "-c", _SCRIPT,
+             *map(str, paths)], capture_output=True, text=True, env=env)
+        if done.returncode != 0:
+            raise RuntimeError("the count under callgrind failed:\n"
+                               + (done.stderr or done.stdout)[-2000:])
+        frames = json.loads(done.stdout.strip().splitlines()[-1])
+        totals = dump_totals(prefix)
+    return rows_from([p.stem for p in paths], frames, totals)
+
+
+def run(short: bool, log=None) -> list[dict]:
+    """The goldens (two with ``short``) and the synthetic three-part session, 60 s (10 s
+    with ``short``), recorded here first."""
+    from ..replay import record
+    from .replay import GOLDENS, _session
+    from .sessions import three_part_session
+
+    valgrind()  # before minutes of recording
+    goldens = sorted(GOLDENS.glob("*.mcap"))
+    with tempfile.TemporaryDirectory(prefix="vade-bench-") as tmp:
+        seconds = 10.0 if short else 60.0
+        synthetic = Path(tmp) / f"three_parts_{seconds:g}s.mcap"
+        record(_session(three_part_session(seconds)), synthetic)
+        return count((goldens[:2] if short else goldens) + [synthetic], log=log)
