@@ -2,8 +2,9 @@
 
 Wall time on a shared machine moves 20-40 % between runs minutes apart (BENCHMARKS.md), more
 than most changes to the per-frame code are worth. The instructions a replay executes do
-not move: counted by valgrind's callgrind they repeat to a few parts in a million, so a
-change can be held to the code before it without the machine's noise. They are not time
+not move with the load: counted by valgrind's callgrind they repeat to within a few
+tenths of a per cent (run to run, the interpreter's allocations land at other addresses),
+so a change can be held to the code before it without the machine's noise. They are not time
 (on a machine whose caches are small, a frame's cost follows the memory it touches too),
 so the targets stay the timed ``vade-bench --replay``'s; this is the yardstick for the work
 towards them.
