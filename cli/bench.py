@@ -41,6 +41,10 @@ def _parser() -> argparse.ArgumentParser:
                        help="count the instructions a frame of each replay stage executes, "
                             "under valgrind (minutes): the yardstick that does not move "
                             "with the machine's load")
+    p.add_argument("--against", metavar="FILE.json", default=None,
+                   help="with --instructions: an earlier run's instructions.json; each "
+                        "stage's count is also given as a ratio to it (the code before a "
+                        "change against the code after)")
     p.add_argument("--repeats", type=int, default=None, metavar="N",
                    help="timed rounds, the least is kept (default 5; 1 with --short)")
     p.add_argument("--markdown", action="store_true",
@@ -126,18 +130,25 @@ def _instructions(args, out: Path, command: str) -> None:
     from vade_replay.bench import instructions, report
     from vade_replay.bench import replay as replay_bench
 
+    before = instructions.earlier(Path(args.against)) if args.against else None
     rows = instructions.run(args.short, log=_log)
+    if before is not None:
+        rows = instructions.against(rows, before)
     print(f"machine: {replay_bench.machine()}\n")
     _print(args, [{k: v for k, v in row.items() if k != "table"} for row in rows],
            title="Instructions a frame by stage, counted by valgrind's callgrind (setup: in "
                  "all; a replay's check with its loop and summary: replay - stepped)")
     report.write_csv(rows, out / "instructions.csv")
-    report.write_json(out / "instructions.json", rows=rows, command=command, short=args.short)
+    report.write_json(out / "instructions.json", rows=rows, command=command, short=args.short,
+                      against=args.against)
     print(f"wrote {out / 'instructions.csv'}, {out / 'instructions.json'}")
 
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    if args.against and not args.instructions:
+        raise ConfigError("compares a count of instructions: give --instructions too",
+                          field="--against")
     if args.repeats is not None and args.repeats < 1:
         raise ConfigError("must be at least 1", field="--repeats", value=args.repeats)
     out = Path(args.out)

@@ -87,3 +87,45 @@ def test_a_count_repeats_to_the_instruction_and_adds_up(tmp_path):
     assert first["replay_per_frame"] > first["floor_per_frame"]
     assert first["replay_per_frame"] > first["step_per_frame"] + first["check_and_loop_per_frame"]
     json.dumps(first)  # the row is what the JSON file holds
+
+
+def _row(session: str, scale: float = 1.0) -> dict:
+    return {"table": "instructions", "session": session, "frames": 10,
+            **{k: int(1000 * scale) for k in instructions.COMPARED}}
+
+
+def test_against_gives_each_stage_as_a_ratio_to_the_count_before(tmp_path):
+    path = tmp_path / "instructions.json"
+    path.write_text(json.dumps({"rows": [_row("a"), _row("gone")]}))
+    before = instructions.earlier(path)
+    new = _row("a", 0.9)
+    new["step_per_frame"] = 1100
+    a, b = instructions.against([new, _row("new")], before)
+    assert a["step_vs_before"] == 1.1 and a["replay_vs_before"] == 0.9
+    assert a["setup_vs_before"] == 0.9 and a["check_and_loop_vs_before"] == 0.9
+    assert not any(k.endswith("_vs_before") for k in b)  # not counted before
+
+
+@pytest.mark.parametrize("text, says", [
+    (None, "cannot read it"),
+    ("{not json", "is not JSON"),
+    (json.dumps({"rows": [{"table": "end_to_end", "session": "a"}]}), "is not the instructions"),
+    (json.dumps({"rows": [{**_row("a"), "step_per_frame": 0}]}), "is not the instructions"),
+    (json.dumps([1, 2]), "is not the instructions"),
+])
+def test_an_unusable_earlier_count_is_refused_before_any_counting(tmp_path, monkeypatch,
+                                                                   capsys, text, says):
+    path = tmp_path / "old.json"
+    if text is not None:
+        path.write_text(text)
+    monkeypatch.setattr(instructions, "run", lambda *a, **k: pytest.fail("counted"))
+    code = run(bench.main, ["--instructions", "--against", str(path), "-o", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 2 and str(path) in err and "--against" in err and says in err
+    assert "Traceback" not in err
+
+
+def test_against_needs_instructions(tmp_path, capsys):
+    code = run(bench.main, ["--replay", "--against", "x.json", "-o", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 2 and "--against" in err and "--instructions" in err

@@ -171,3 +171,41 @@ def run(short: bool, log=None) -> list[dict]:
         synthetic = Path(tmp) / f"three_parts_{seconds:g}s.mcap"
         record(_session(three_part_session(seconds)), synthetic)
         return count((goldens[:2] if short else goldens) + [synthetic], log=log)
+
+
+# What ``--against`` compares: the per-frame stages and the setup.
+COMPARED = ("floor_per_frame", "setup", "frames_read_per_frame", "step_per_frame",
+            "check_and_loop_per_frame", "replay_per_frame")
+
+
+def earlier(path: Path) -> dict[str, dict]:
+    """The rows of an earlier ``instructions.json``, by session (``--against``)."""
+    try:
+        doc = json.loads(Path(path).read_text())
+    except OSError as exc:
+        raise ConfigError(f"cannot read it ({exc.strerror})", file=str(path),
+                          field="--against") from None
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"is not JSON ({exc})", file=str(path), field="--against") from None
+    rows = doc.get("rows") if isinstance(doc, dict) else None
+    if not isinstance(rows, list) or not all(
+            isinstance(r, dict) and r.get("table") == "instructions"
+            and isinstance(r.get("session"), str)
+            and all(type(r.get(k)) is int and r[k] > 0 for k in COMPARED) for r in rows):
+        raise ConfigError("is not the instructions.json of a vade-bench --instructions run",
+                          file=str(path), field="--against")
+    return {r["session"]: r for r in rows}
+
+
+def against(rows: list[dict], before: dict[str, dict]) -> list[dict]:
+    """``rows`` with each compared figure's ratio to the earlier count of the same session
+    (``STAGE_vs_before``; 0.95 is 5 % fewer instructions); a session not counted before
+    gets none."""
+    out = []
+    for row in rows:
+        old = before.get(row["session"])
+        extra = {} if old is None else {
+            f"{k.removesuffix('_per_frame')}_vs_before": round(row[k] / old[k], 4)
+            for k in COMPARED}
+        out.append({**row, **extra})
+    return out
