@@ -30,7 +30,8 @@ TARGET_COLS = ["target", "measured", "limit", "met"]
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="vade-bench", description=__doc__.splitlines()[0])
     p.add_argument("--short", action="store_true",
-                   help="CI mode: few step counts, short durations, one repeat (seconds)")
+                   help="CI mode: few step counts, short durations, one repeat (seconds; "
+                        "about a minute with --instructions)")
     p.add_argument("-o", "--out", default="bench-out", metavar="DIR",
                    help="folder for the CSV, JSON and PNG files (default bench-out/)")
     which = p.add_mutually_exclusive_group()
@@ -133,11 +134,15 @@ def _instructions(args, out: Path, command: str) -> None:
     before = instructions.earlier(Path(args.against)) if args.against else None
     rows = instructions.run(args.short, log=_log)
     if before is not None:
+        missing = instructions.unmatched(rows, before)
+        if missing:
+            print(f"not in {args.against}, so without ratios: {', '.join(missing)}\n")
         rows = instructions.against(rows, before)
     print(f"machine: {replay_bench.machine()}\n")
     _print(args, [{k: v for k, v in row.items() if k != "table"} for row in rows],
-           title="Instructions a frame by stage, counted by valgrind's callgrind (setup: in "
-                 "all; a replay's check with its loop and summary: replay - stepped)")
+           title="Instructions a frame by stage, counted by valgrind's callgrind (setup: "
+                 "instructions in all, once a file, not a frame; check_and_loop: a replay's "
+                 "check with its loop and summary)")
     report.write_csv(rows, out / "instructions.csv")
     report.write_json(out / "instructions.json", rows=rows, command=command, short=args.short,
                       against=args.against)
@@ -149,6 +154,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.against and not args.instructions:
         raise ConfigError("compares a count of instructions: give --instructions too",
                           field="--against")
+    if args.repeats is not None and args.instructions:
+        raise ConfigError("a count of instructions has no rounds to repeat: leave it out",
+                          field="--repeats")
     if args.repeats is not None and args.repeats < 1:
         raise ConfigError("must be at least 1", field="--repeats", value=args.repeats)
     out = Path(args.out)

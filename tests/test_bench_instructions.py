@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import json
 import shutil
+import subprocess
+import sys
 from types import SimpleNamespace
 
 import pytest
@@ -15,6 +17,7 @@ from strategies import FULL
 from vade_replay.bench import instructions
 from vade_replay.cli import bench
 from vade_replay.cli._common import run
+from vade_replay.errors import VadeError
 
 
 def _dump(path, total: int) -> None:
@@ -42,21 +45,45 @@ def test_a_dump_without_a_total_is_an_error(tmp_path):
 
 
 def test_each_stage_is_its_own_dump_and_the_step_is_what_stepping_adds():
-    # warm-up, then per session: floor, setup, frames, stepped, replay; then the rest.
+    # warm-up, then per session: floor, open, setup, frames, stepped, replay; then the rest.
     totals = [10**9,
-              1000, 300, 400, 900, 1500,     # a: 10 frames
-              2000, 100, 800, 1700, 3000,    # b: 20 frames
+              1000, 50, 250, 400, 900, 1500,     # a: 10 frames
+              2000, 20, 80, 800, 1700, 3000,     # b: 20 frames
               5]
     a, b = instructions.rows_from(["a", "b"], [10, 20], totals)
-    assert (a["session"], a["frames"], a["setup"]) == ("a", 10, 300)
+    assert (a["session"], a["frames"]) == ("a", 10)
+    assert a["setup"] == 300  # the open and the scene, once
     assert a["floor_per_frame"] == 100 and a["frames_read_per_frame"] == 40
-    assert a["step_per_frame"] == (900 - 300 - 400) / 10
+    # Stepping counted once: what it adds to opening, setting up and reading.
+    assert a["step_per_frame"] == (900 - 50 - 250 - 400) / 10 == 20
     assert a["check_and_loop_per_frame"] == (1500 - 900) / 10
     assert a["replay_per_frame"] == 150
     assert a["replay_over_floor"] == 1.5 and a["after_setup_over_floor"] == 1.2
     assert b["step_per_frame"] == (1700 - 100 - 800) / 20 and b["replay_over_floor"] == 1.5
-    with pytest.raises(RuntimeError, match="callgrind wrote 6 dumps, 11 were expected"):
-        instructions.rows_from(["a", "b"], [10, 20], totals[:6])
+    # One dump more or fewer than the stages make (a stray marker call, other valgrind
+    # options) shifts every stage: refused.
+    for wrong in (totals[:-1], totals + [7]):
+        with pytest.raises(VadeError, match=f"callgrind wrote {len(wrong)} dumps where 14 "
+                                            "were expected"):
+            instructions.rows_from(["a", "b"], [10, 20], wrong)
+
+
+def test_the_script_marks_each_stage_once_and_replays_what_it_counts(tmp_path):
+    """The script callgrind runs, run as plain Python with the marker counted: one marker
+    after the warm-up and one after each stage of each recording, and the frame counts of
+    replays that matched."""
+    paths = [str(RECORDINGS / "drop_on_table.mcap"), str(RECORDINGS / "tumbling_box.mcap")]
+    wrapper = ("import zlib\nmarks = [0]\n_adler = zlib.adler32\n"
+               "def counted(data):\n    marks[0] += 1\n    return _adler(data)\n"
+               "zlib.adler32 = counted\n"
+               f"exec(compile({instructions._SCRIPT!r}, 'script', 'exec'))\n"
+               "print(marks[0])\n")
+    done = subprocess.run([sys.executable, "-c", wrapper, *paths], capture_output=True,
+                          text=True, cwd=tmp_path, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    frames, marks = done.stdout.strip().splitlines()[-2:]
+    assert json.loads(frames) == [151, 181]
+    assert int(marks) == 1 + len(instructions.STAGES) * len(paths)
 
 
 def test_without_valgrind_it_says_so_and_exits_2(tmp_path, monkeypatch, capsys):
@@ -71,7 +98,7 @@ def test_without_valgrind_it_says_so_and_exits_2(tmp_path, monkeypatch, capsys):
 @pytest.mark.stress
 @pytest.mark.skipif(not FULL, reason="two runs under valgrind, ~2 min: VADE_STRESS=full")
 @pytest.mark.skipif(shutil.which("valgrind") is None, reason="needs valgrind")
-def test_a_count_repeats_to_the_instruction_and_adds_up(tmp_path):
+def test_a_count_repeats_and_its_stages_add_up(tmp_path):
     """Two counts of the same golden in separate processes (hash seed fixed): the per-frame
     figures agree within 1 % (seen: equal, or 0.05-0.3 % apart, where timed runs move by a
     third); every stage is there and none is negative."""
@@ -104,13 +131,16 @@ def test_against_gives_each_stage_as_a_ratio_to_the_count_before(tmp_path):
     assert a["step_vs_before"] == 1.1 and a["replay_vs_before"] == 0.9
     assert a["setup_vs_before"] == 0.9 and a["check_and_loop_vs_before"] == 0.9
     assert not any(k.endswith("_vs_before") for k in b)  # not counted before
+    assert instructions.unmatched([new, _row("new")], before) == ["new"]
+    zero = {"a": {**_row("a"), "setup": 0}}
+    assert instructions.against([_row("a")], zero)[0]["setup_vs_before"] is None
 
 
 @pytest.mark.parametrize("text, says", [
     (None, "cannot read it"),
     ("{not json", "is not JSON"),
     (json.dumps({"rows": [{"table": "end_to_end", "session": "a"}]}), "is not the instructions"),
-    (json.dumps({"rows": [{**_row("a"), "step_per_frame": 0}]}), "is not the instructions"),
+    (json.dumps({"rows": [{**_row("a"), "step_per_frame": 1.5}]}), "is not the instructions"),
     (json.dumps([1, 2]), "is not the instructions"),
 ])
 def test_an_unusable_earlier_count_is_refused_before_any_counting(tmp_path, monkeypatch,
@@ -125,7 +155,18 @@ def test_an_unusable_earlier_count_is_refused_before_any_counting(tmp_path, monk
     assert "Traceback" not in err
 
 
-def test_against_needs_instructions(tmp_path, capsys):
+def test_against_needs_instructions_and_repeats_is_refused_with_it(tmp_path, capsys):
     code = run(bench.main, ["--replay", "--against", "x.json", "-o", str(tmp_path)])
     err = capsys.readouterr().err
     assert code == 2 and "--against" in err and "--instructions" in err
+    code = run(bench.main, ["--instructions", "--repeats", "3", "-o", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 2 and "--repeats" in err and "Traceback" not in err
+
+
+def test_a_python_whose_marker_callgrind_cannot_see_is_named(monkeypatch):
+    # As with a stripped interpreter: the probe's two marker calls make no dumps.
+    monkeypatch.setattr(instructions, "_callgrind", lambda script, args: ("", [123]))
+    with pytest.raises(VadeError, match="callgrind cannot see zlib_adler32") as info:
+        instructions.probe()
+    assert info.value.field == "--instructions"

@@ -15,14 +15,18 @@ caches), then runs each stage of each session in turn with a marker call between
 nothing else here calls it). Stages, each from the file on disk:
 
 - ``floor``: ``recording.read_and_decode``, what the replay target is held to;
-- ``setup``: the recording opened, its scene built with its collision models;
-- ``frames``: the recording's frames read (the tracker decoded into the step's objects);
-- ``stepped``: setup, frames read and stepped, as a replay steps them (``replay._stepped``);
+- ``open``: the recording opened and its session read;
+- ``setup``: the scene built with its collision world, from a recording opened beforehand;
+- ``frames``: the frames read (the tracker decoded into the step's objects), likewise;
+- ``stepped``: opened, set up, frames read and stepped, as a replay steps them
+  (``replay._stepped``);
 - ``replay``: ``replay.replay``, checking every message (it must match).
 
-Derived, per frame: the step (``stepped - setup - frames``), the check with the replay's own
-loop and summary (``replay - stepped``), and the replay against the floor, with and without
-its setup.
+Reported: ``setup`` as ``open + setup`` (instructions in all, once a file), and per frame the
+floor, the frames read, the step (``stepped - open - setup - frames``), the check with the
+replay's own loop and summary (``replay - stepped``) and the replay, and the replay against
+the floor with and without its setup. A probe first checks that callgrind sees the marker
+in this Python (``probe``).
 """
 
 from __future__ import annotations
@@ -38,22 +42,28 @@ from pathlib import Path
 
 from ..errors import ConfigError
 
-STAGES = ("floor", "setup", "frames", "stepped", "replay")
+STAGES = ("floor", "open", "setup", "frames", "stepped", "replay")
 _MARKER = "zlib_adler32"  # the C function of zlib.adler32, the stages' marker
 
-# Run under callgrind: argv is the recordings. Prints their frame counts as JSON.
+# Run under callgrind: argv is the recordings. Prints their frame counts as JSON. The
+# ``setup`` and ``frames`` stages take recordings opened before the first marker, so that
+# the open is counted once, in ``open``, and the step is what stepping adds.
 _SCRIPT = """
-import json, sys, zlib
+import gc, json, sys, zlib
 from vade_replay.collision import CollisionWorld
 from vade_replay.recording import Recording, read_and_decode
 from vade_replay.replay import Stepper, _INPUTS, _stepped, replay
 
-def setup(path):
-    scene = Recording(path).session.build_scene()
-    CollisionWorld(scene)
+def opened(path):
+    recording = Recording(path)
+    recording.session
+    return recording
 
-def frames(path):
-    for _ in Recording(path).frames():
+def setup(recording):
+    CollisionWorld(recording.session.build_scene())
+
+def frames(recording):
+    for _ in recording.frames():
         pass
 
 def stepped(path):
@@ -72,13 +82,17 @@ def check(path):
 paths = sys.argv[1:]
 counts = [check(p) for p in paths]  # warm: imports and first-use caches, and it matches
 for p in paths:
-    read_and_decode(p)
+    read_and_decode(p); setup(opened(p)); frames(opened(p)); stepped(p)
+ready = [(p, opened(p), opened(p)) for p in paths]
+gc.collect()
+gc.freeze()  # (a full collection of the warm-up's objects would land in one stage)
 mark = zlib.adler32
 mark(b"")
-for p in paths:
+for p, for_setup, for_frames in ready:
     read_and_decode(p); mark(b"")
-    setup(p); mark(b"")
-    frames(p); mark(b"")
+    opened(p); mark(b"")
+    setup(for_setup); mark(b"")
+    frames(for_frames); mark(b"")
     stepped(p); mark(b"")
     check(p); mark(b"")
 print(json.dumps(counts))
@@ -114,46 +128,75 @@ def dump_totals(prefix: Path) -> list[int]:
 def rows_from(names: list[str], frames: list[int], totals: list[int]) -> list[dict]:
     """The table's rows from the dumps' totals: the first is the warm-up, then one for each
     stage of each session in order (``STAGES``), then what ran after the last marker."""
-    need = 1 + len(STAGES) * len(names)
-    if len(totals) < need:
-        raise RuntimeError(f"callgrind wrote {len(totals)} dumps, {need} were expected")
+    need = 2 + len(STAGES) * len(names)
+    if len(totals) != need:
+        raise ConfigError(
+            f"callgrind wrote {len(totals)} dumps where {need} were expected: something "
+            f"else called zlib.adler32, or valgrind's options (VALGRIND_OPTS, .valgrindrc) "
+            f"changed when it dumps", field="--instructions")
     rows = []
     for k, (name, n) in enumerate(zip(names, frames)):
         stage = dict(zip(STAGES, totals[1 + k * len(STAGES):1 + (k + 1) * len(STAGES)]))
-        step = stage["stepped"] - stage["setup"] - stage["frames"]
+        setup = stage["open"] + stage["setup"]
+        step = stage["stepped"] - setup - stage["frames"]
         check = stage["replay"] - stage["stepped"]
         rows.append({
             "table": "instructions", "session": name, "frames": n,
             "floor_per_frame": round(stage["floor"] / n),
-            "setup": stage["setup"], "frames_read_per_frame": round(stage["frames"] / n),
+            # (Instructions in all, once a file: opening it, the scene, its collision world.)
+            "setup": setup, "frames_read_per_frame": round(stage["frames"] / n),
             "step_per_frame": round(step / n),
             "check_and_loop_per_frame": round(check / n),
             "replay_per_frame": round(stage["replay"] / n),
             "replay_over_floor": stage["replay"] / stage["floor"],
-            "after_setup_over_floor": (stage["replay"] - stage["setup"]) / stage["floor"]})
+            "after_setup_over_floor": (stage["replay"] - setup) / stage["floor"]})
     return rows
 
 
-def count(paths: list[Path], log=None) -> list[dict]:
-    """Count each stage of each recording in one process under callgrind (minutes: every
-    instruction is run on valgrind's simulated CPU, ~50x slower)."""
-    log = log or (lambda text: None)
+def _callgrind(script: str, args: list[str]) -> tuple[str, list[int]]:
+    """Run ``python -c script args`` under callgrind with the stages' marker; its standard
+    output and the dumps' totals. A failure is one line naming what failed."""
     tool = valgrind()
     env = dict(os.environ, PYTHONHASHSEED="0",
                # (A BLAS thread spinning while it waits for work would be counted too.)
                OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
     with tempfile.TemporaryDirectory(prefix="vade-bench-cg-") as tmp:
         prefix = Path(tmp) / "callgrind.out"
-        log(f"instructions: {len(paths)} recordings under callgrind")
         done = subprocess.run(
             [tool, "--tool=callgrind", f"--callgrind-out-file={prefix}",
-             f"--dump-before={_MARKER}", sys.executable, "-c", _SCRIPT,
-             *map(str, paths)], capture_output=True, text=True, env=env)
+             f"--dump-before={_MARKER}", sys.executable, "-c", script, *args],
+            capture_output=True, text=True, env=env)
         if done.returncode != 0:
-            raise RuntimeError("the count under callgrind failed:\n"
-                               + (done.stderr or done.stdout)[-2000:])
-        frames = json.loads(done.stdout.strip().splitlines()[-1])
-        totals = dump_totals(prefix)
+            lines = (done.stderr or done.stdout).strip().splitlines()
+            last = next((ln for ln in reversed(lines) if not ln.startswith("==")),
+                        lines[-1] if lines else "")
+            raise ConfigError(f"the count under callgrind failed (exit {done.returncode}): "
+                              f"{last.strip()}", field="--instructions")
+        try:
+            totals = dump_totals(prefix)
+        except RuntimeError as exc:
+            raise ConfigError(str(exc), field="--instructions") from None
+    return done.stdout, totals
+
+
+def probe() -> None:
+    """That callgrind sees the marker in this Python: two marker calls must make two dumps
+    (an interpreter stripped of its symbols, as some distributions ship, makes none)."""
+    _, totals = _callgrind("import zlib; zlib.adler32(b''); zlib.adler32(b'')", [])
+    if len(totals) != 3:
+        raise ConfigError(
+            f"callgrind cannot see {_MARKER} in {sys.executable} (an interpreter stripped of "
+            f"its symbols?): count with a Python that keeps them, e.g. one built by pyenv",
+            field="--instructions")
+
+
+def count(paths: list[Path], log=None) -> list[dict]:
+    """Count each stage of each recording in one process under callgrind (minutes: every
+    instruction is run on valgrind's simulated CPU, ~50x slower)."""
+    log = log or (lambda text: None)
+    log(f"instructions: {len(paths)} recordings under callgrind")
+    out, totals = _callgrind(_SCRIPT, [str(p) for p in paths])
+    frames = json.loads(out.strip().splitlines()[-1])
     return rows_from([p.stem for p in paths], frames, totals)
 
 
@@ -164,7 +207,7 @@ def run(short: bool, log=None) -> list[dict]:
     from .replay import GOLDENS, _session
     from .sessions import three_part_session
 
-    valgrind()  # before minutes of recording
+    probe()  # before minutes of recording and counting
     goldens = sorted(GOLDENS.glob("*.mcap"))
     with tempfile.TemporaryDirectory(prefix="vade-bench-") as tmp:
         seconds = 10.0 if short else 60.0
@@ -191,7 +234,7 @@ def earlier(path: Path) -> dict[str, dict]:
     if not isinstance(rows, list) or not all(
             isinstance(r, dict) and r.get("table") == "instructions"
             and isinstance(r.get("session"), str)
-            and all(type(r.get(k)) is int and r[k] > 0 for k in COMPARED) for r in rows):
+            and all(type(r.get(k)) is int for k in COMPARED) for r in rows):
         raise ConfigError("is not the instructions.json of a vade-bench --instructions run",
                           file=str(path), field="--against")
     return {r["session"]: r for r in rows}
@@ -199,13 +242,19 @@ def earlier(path: Path) -> dict[str, dict]:
 
 def against(rows: list[dict], before: dict[str, dict]) -> list[dict]:
     """``rows`` with each compared figure's ratio to the earlier count of the same session
-    (``STAGE_vs_before``; 0.95 is 5 % fewer instructions); a session not counted before
-    gets none."""
+    (``STAGE_vs_before``; 0.95 is 5 % fewer instructions; None where the earlier count was
+    0); a session not counted before gets none (``unmatched`` names them)."""
     out = []
     for row in rows:
         old = before.get(row["session"])
         extra = {} if old is None else {
-            f"{k.removesuffix('_per_frame')}_vs_before": round(row[k] / old[k], 4)
+            f"{k.removesuffix('_per_frame')}_vs_before":
+                round(row[k] / old[k], 4) if old[k] > 0 else None
             for k in COMPARED}
         out.append({**row, **extra})
     return out
+
+
+def unmatched(rows: list[dict], before: dict[str, dict]) -> list[str]:
+    """The sessions of ``rows`` the earlier count did not have."""
+    return [row["session"] for row in rows if row["session"] not in before]
