@@ -133,11 +133,17 @@ def test_blocked_parts_stop_at_contact_not_inside_and_not_short():
         assert 0.5 * TOL - 1e-9 <= d <= TOL + 1e-9, (name, d)
 
 
-def test_feature_geometry_is_built_once_per_constraint():
+def test_feature_geometry_is_built_once_per_constraint_when_first_asked_for():
     scene, world, mate = _sleeve_world()
     assert len(mate.base_feature_faces) > 0 and len(mate.part_feature_faces) > 0
     assert not mate.base_feature_faces.flags.writeable
-    assert set(world._mates) == {("sleeve", 0)}
+    fresh = CollisionWorld(scene)
+    assert fresh._mates == {} and fresh._whole_obj is None  # nothing built up front
+    first = fresh._mate("sleeve", 0)
+    assert fresh._mate("sleeve", 0) is first and set(fresh._mates) == {("sleeve", 0)}
+    assert first.base_whole is fresh._whole()  # the one base model, shared
+    with pytest.raises(KeyError):
+        fresh._mate("sleeve", 1)  # the sleeve has one constraint
 
 
 def test_radial_extent_of_triangles_against_closed_forms():

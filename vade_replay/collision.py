@@ -197,24 +197,22 @@ class CollisionWorld:
             obj = fcl.CollisionObject(_bvh(body), _transform(pose))
             self._fixed.append(_Fixed(body.name, obj, tuple(world.min(axis=0)),
                                       tuple(world.max(axis=0))))
+        # The base's BVH and each constraint's (``_mate``) are built the first time they are
+        # asked for too: a constraint no part comes near in a session costs nothing, nor
+        # does the base of a session whose parts never meet it. (The same models as built
+        # up front: a query's answer does not depend on when its BVH was made.)
+        self._base = scene.base
+        self._has_base = scene.base is not None
+        self._radial = scene.physics.coaxial_fit == "radial"
+        self._identity = fcl.Transform()
+        self._whole_obj: fcl.CollisionObject | None = None
         self._mates: dict[tuple[str, int], _MateGeometry] = {}
-        self._base_whole = None
         self._base_faces = self._base_vertices = np.zeros((0, 3))
         self.base_radius = 0.0  # farthest base vertex from the base frame's origin
         if scene.base is not None:
             base = scene.base
-            identity = fcl.Transform()
-            whole = fcl.CollisionObject(_bvh(base), identity)
-            self._base_whole = whole
             self._base_faces, self._base_vertices = base.faces, base.vertices
             self.base_radius = float(np.max(norms(base.vertices)))
-            for body in scene.parts:
-                if body.assembly is None:
-                    continue
-                for index, mate in enumerate(body.assembly.mates):
-                    self._mates[(body.name, index)] = self._mate_geometry(
-                        body, base, mate, whole, identity,
-                        scene.physics.coaxial_fit == "radial")
         # The base's surfaces (``base_surfaces``), made when a part first leaves the base:
         # a flight passes those it touched as it left until the two have separated once.
         self._base_surfaces: list[_Surface] | None = None
@@ -235,6 +233,26 @@ class CollisionWorld:
         if model is None:
             model = self._part_models[part] = _bvh(self._bodies[part])
         return model
+
+    def _whole(self) -> fcl.CollisionObject:
+        """The whole base's object (a scene with a base only)."""
+        whole = self._whole_obj
+        if whole is None:
+            assert self._base is not None
+            whole = self._whole_obj = fcl.CollisionObject(_bvh(self._base), self._identity)
+        return whole
+
+    def _mate(self, part: str, mate: int) -> _MateGeometry:
+        """A part's constraint's BVHs (``_MateGeometry``), built the first time."""
+        geometry = self._mates.get((part, mate))
+        if geometry is None:
+            body, base = self._bodies[part], self._base
+            if base is None or body.assembly is None or not 0 <= mate < len(body.assembly.mates):
+                raise KeyError((part, mate))
+            geometry = self._mates[(part, mate)] = self._mate_geometry(
+                body, base, body.assembly.mates[mate], self._whole(), self._identity,
+                self._radial)
+        return geometry
 
     @staticmethod
     def _mate_geometry(body: Body, base: Body, mate: Mate, whole, identity,
@@ -308,7 +326,7 @@ class CollisionWorld:
 
         ``inf`` when the mode leaves nothing of the base to check against.
         """
-        geometry = self._mates[(part, mate)]
+        geometry = self._mate(part, mate)
         pose = sp.Pose(sp.add(base_from_part.position, lift), base_from_part.rotation)
         if mode is SKIP_COAXIAL and geometry.fit_pairs is not None:
             transform = _transform(pose)
@@ -338,7 +356,7 @@ class CollisionWorld:
         against the base has hundreds of triangles at the same distance, which no bounding
         volume prunes). Any answer > tol is the exact ``base_distance``.
         """
-        geometry = self._mates[(part, mate)]
+        geometry = self._mate(part, mate)
         model, other, part_faces, base_faces = self._models(part, geometry, mode)
         pairs = geometry.fit_pairs if mode is SKIP_COAXIAL else None
         if pairs is None and (model is None or other is None):
@@ -382,7 +400,7 @@ class CollisionWorld:
 
     def support_distance(self, part: str, mate: int, point: sp.Vec3) -> float:
         """Distance from a point on the base plane to the base's feature faces (0: on them)."""
-        geometry = self._mates[(part, mate)]
+        geometry = self._mate(part, mate)
         if geometry.base_feature is None:
             return float("inf")
         self.stats["fcl_distance_queries"] += 1
@@ -394,7 +412,7 @@ class CollisionWorld:
         """Distance from the part's solid of revolution about the shaft to the rest of the
         base: while positive, no angle of the part can touch it. ``axis_point`` is where the
         part's own axis point sits (base axes); ``axis_rotation`` takes z onto the shaft."""
-        geometry = self._mates[(part, mate)]
+        geometry = self._mate(part, mate)
         rest, floor = geometry.base_rest, float("inf")
         if geometry.fit_pairs is not None:
             # Radial fits: the solid against the base's bulk (what no group of the part's
@@ -474,7 +492,7 @@ class CollisionWorld:
         (``rest_nearest_without``): not where it has radial fits
         (``_MateGeometry.fit_pairs``), which whole surfaces do not see (a pin passing its
         rim would meet it)."""
-        return self._mates[(part, mate)].fit_pairs is None
+        return self._mate(part, mate).fit_pairs is None
 
     def rest_nearest_without(self, part: str, mate: int, base_from_part: sp.Pose,
                              without: tuple[int, ...], *,
@@ -531,7 +549,7 @@ class CollisionWorld:
         leaves the base, which its flight passes while leaving (``Flight.grace``). Whole
         surfaces, so that a finely meshed face does not hold the part by the triangle next
         to the one it touched."""
-        if self._base_whole is None:
+        if not self._has_base:
             return ()
         obj = fcl.CollisionObject(self._model(part), _transform(base_from_part))
         near = []
@@ -568,13 +586,13 @@ class CollisionWorld:
         """Distance from the part, posed in the base frame, to the whole base part; with
         ``grace``, to the base without those surfaces (``surfaces_within``; ``inf`` where
         none is left)."""
-        if self._base_whole is None:
+        if not self._has_base:
             return float("inf")
         if grace:
             return self._graced_nearest(part, base_from_part, grace, False)[0]
         self.stats["fcl_distance_queries"] += 1
         return _distance(fcl.CollisionObject(self._model(part), _transform(base_from_part)),
-                         self._base_whole)
+                         self._whole())
 
     def base_contact_normal(self, part: str, base_from_part: sp.Pose,
                             grace: tuple[int, ...] | None = None) -> sp.Vec3 | None:
@@ -589,7 +607,7 @@ class CollisionWorld:
         normal of the base triangle nearest the part, not the direction from an edge or a
         corner (a part leaving the base along a face meets the edge of another surface
         flush with it, a seam in a wall, at directions between the two)."""
-        if self._base_whole is None:
+        if not self._has_base:
             return None, False
         faces = self._base_faces
         if grace:
@@ -602,7 +620,7 @@ class CollisionWorld:
             result = fcl.DistanceResult()
             d = fcl.distance(fcl.CollisionObject(self._model(part),
                                                  _transform(base_from_part)),
-                             self._base_whole, fcl.DistanceRequest(enable_nearest_points=True),
+                             self._whole(), fcl.DistanceRequest(enable_nearest_points=True),
                              result)
         if not d > 0.0:
             return None, False
@@ -657,8 +675,7 @@ class CollisionWorld:
         probe = fcl.CollisionObject(self._probe, fcl.Transform(np.array(point,
                                                                          dtype=np.float64)))
         if base:
-            return float("inf") if self._base_whole is None \
-                else _distance(probe, self._base_whole)
+            return float("inf") if not self._has_base else _distance(probe, self._whole())
         return _distance(probe, fcl.CollisionObject(self._model(part), fcl.Transform()))
 
     def distance_to_environment(self, part: str, pose: sp.Pose,
