@@ -202,7 +202,6 @@ class CollisionWorld:
         # does the base of a session whose parts never meet it. (The same models as built
         # up front: a query's answer does not depend on when its BVH was made.)
         self._base = scene.base
-        self._has_base = scene.base is not None
         self._radial = scene.physics.coaxial_fit == "radial"
         self._identity = fcl.Transform()
         self._whole_obj: fcl.CollisionObject | None = None
@@ -549,7 +548,7 @@ class CollisionWorld:
         leaves the base, which its flight passes while leaving (``Flight.grace``). Whole
         surfaces, so that a finely meshed face does not hold the part by the triangle next
         to the one it touched."""
-        if not self._has_base:
+        if self._base is None:
             return ()
         obj = fcl.CollisionObject(self._model(part), _transform(base_from_part))
         near = []
@@ -586,7 +585,7 @@ class CollisionWorld:
         """Distance from the part, posed in the base frame, to the whole base part; with
         ``grace``, to the base without those surfaces (``surfaces_within``; ``inf`` where
         none is left)."""
-        if not self._has_base:
+        if self._base is None:
             return float("inf")
         if grace:
             return self._graced_nearest(part, base_from_part, grace, False)[0]
@@ -607,7 +606,7 @@ class CollisionWorld:
         normal of the base triangle nearest the part, not the direction from an edge or a
         corner (a part leaving the base along a face meets the edge of another surface
         flush with it, a seam in a wall, at directions between the two)."""
-        if not self._has_base:
+        if self._base is None:
             return None, False
         faces = self._base_faces
         if grace:
@@ -675,7 +674,7 @@ class CollisionWorld:
         probe = fcl.CollisionObject(self._probe, fcl.Transform(np.array(point,
                                                                          dtype=np.float64)))
         if base:
-            return float("inf") if not self._has_base else _distance(probe, self._whole())
+            return float("inf") if self._base is None else _distance(probe, self._whole())
         return _distance(probe, fcl.CollisionObject(self._model(part), fcl.Transform()))
 
     def distance_to_environment(self, part: str, pose: sp.Pose,
