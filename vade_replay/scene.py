@@ -16,6 +16,7 @@ from dataclasses import dataclass, field, fields, replace
 from typing import Final
 
 import numpy as np
+import orjson
 
 # ``import trimesh`` imports scipy where it is installed (the test and bench extras): ~0.35 s
 # of a command's ~0.75 s start, more than a short golden's whole replay. No trimesh function
@@ -531,22 +532,21 @@ def _body(doc: dict, length_factor: float, files: dict[str, bytes], *, where: st
           mode: Mode, needs_mass: bool, shapes: dict | None = None) -> Body:
     # Parts made alike (a tray of identical screws) share their mesh and mass properties:
     # ``shapes`` remembers them for one scene, keyed by everything else in the document.
-    key = json.dumps([{k: v for k, v in doc.items() if k not in _PLACEMENT_KEYS},
-                      length_factor, needs_mass], sort_keys=True)
+    # (orjson: json.dumps of the key was most of a 200-part scene's build.)
+    key = _shape_key([{k: v for k, v in doc.items() if k not in _PLACEMENT_KEYS},
+                      length_factor, needs_mass])
     made = shapes.get(key) if shapes is not None else None
     if made is None:
         made = _geometry(doc, length_factor, files, where=where, file=file,
                          needs_mass=needs_mass)
         if shapes is not None:
             shapes[key] = made
-    vertices, faces, props, moments, part_from_principal, radius = made
-    lo, hi = _vec(vertices.min(axis=0)), _vec(vertices.max(axis=0))
+    vertices, faces, props, moments, part_from_principal, radius, lo, hi, reach = made
     return Body(
         name=doc["name"], vertices=vertices, faces=faces, mass_kg=props.mass_kg,
         center_of_mass=props.center_of_mass, inertia_cm=props.inertia_cm,
         principal_moments=moments, part_from_principal=part_from_principal,
-        radius_about_cm=radius, bbox_min=lo, bbox_max=hi,
-        reach_from_origin=math.sqrt(sum(max(-a, b) ** 2 for a, b in zip(lo, hi))),
+        radius_about_cm=radius, bbox_min=lo, bbox_max=hi, reach_from_origin=reach,
         initial_pose=pose_from_doc(doc.get("pose"), length_factor, where=f"{where}.pose",
                                    file=file),
         initial_mode=mode, color=tuple(doc["color"]) if "color" in doc else None)
@@ -582,7 +582,17 @@ def _geometry(doc: dict, length_factor: float, files: dict[str, bytes], *, where
     radius = float(np.max(arrays.norms(vertices - np.array(props.center_of_mass))))
     faces = np.array(mesh.faces, dtype=np.int64)
     faces.setflags(write=False)
-    return _frozen(vertices), faces, props, moments, part_from_principal, radius
+    lo, hi = _vec(vertices.min(axis=0)), _vec(vertices.max(axis=0))
+    reach = math.sqrt(sum(max(-a, b) ** 2 for a, b in zip(lo, hi)))
+    return _frozen(vertices), faces, props, moments, part_from_principal, radius, lo, hi, reach
+
+
+def _shape_key(doc: list) -> bytes:
+    """The text a shape is known by in one scene: the document sorted by key."""
+    try:
+        return orjson.dumps(doc, option=orjson.OPT_SORT_KEYS)
+    except orjson.JSONEncodeError:  # (an integer past 64 bits, say)
+        return json.dumps(doc, sort_keys=True).encode()
 
 
 def _feature(doc: dict, key: str, f: float) -> tuple[sp.Vec3, sp.Vec3]:
