@@ -271,3 +271,64 @@ def test_a_state_copied_with_other_parts_works_out_which_are_awake():
     t = (frames[19].time_ns - frames[0].time_ns) * 1e-9
     assert state.parts[0].pose.position[2] == pytest.approx(1.2 + t - 0.5 * 9.8 * 0.25 * t * t,
                                                             abs=1e-12)
+
+
+def test_the_steppers_kept_lists_give_what_fresh_copies_give():
+    """``Stepper`` works each frame in two lists kept from the frame before (the parts'
+    states and their snapshots), where ``step`` and ``frame_record`` called alone copy the
+    last frame's: the same states and records, frame by frame, as values and as objects
+    (a resting part's snapshot is the one of the frame before either way)."""
+    from vade_replay.replay import Stepper
+    from vade_replay.step import frame_record, initial_state, step
+
+    for doc in (three_part_session(4.0),  # base in a moving hand, parts onto it and placed
+                three_part_session(4.0, static_parts=12, gear=False, box=False)):
+        session = make_session(doc)
+        scene = session.build_scene()
+        stepper = Stepper(scene, CollisionWorld(scene))
+        world = CollisionWorld(scene)
+        state, previous, last_kept = None, None, None
+        modes, shared = set(), 0
+        for inputs in session.tracker_frames():
+            kept = stepper(inputs)
+            if state is None:
+                state = initial_state(scene, time_ns=inputs.time_ns)
+            state, events = step(scene, world, state, inputs)
+            record = frame_record(scene, state, inputs, events, previous=previous)
+            assert _values([kept]) == _values([record]), inputs.frame
+            assert stepper.state.parts == state.parts
+            if previous is not None:
+                same = [a is b for a, b in zip(kept.parts, last_kept.parts)]
+                assert same == [a is b for a, b in zip(record.parts, previous[1].parts)]
+                shared += sum(same)
+            previous, last_kept = (state, record), kept
+            modes.update(p.mode for p in record.parts)
+        assert {"INHAND", "STATIC"} <= modes and shared > 0
+
+
+def test_parts_made_alike_share_their_geometry_and_nothing_else():
+    """Parts whose documents differ only in placement (name, pose, colour) share one mesh,
+    its mass properties and its bounding box, built once; a part of another size or
+    density gets its own, the same as it would alone."""
+    doc = three_part_session(1.0, static_parts=6, gear=False, box=False)
+    doc["parts"][-1]["density"] = 2000               # heavier than its neighbours
+    doc["parts"][-2]["shape"]["size"] = [0.02, 0.02, 0.03]  # taller
+    scene = make_session(doc).build_scene()
+    boxes = [scene.part(f"resting_{i:03d}") for i in range(6)]
+    alike, taller, heavier = boxes[:4], boxes[4], boxes[5]
+    # (A bounding box is a tuple of floats, rebuilt at each read in the compiled build:
+    # equal, not the same object.)
+    assert all(b.vertices is alike[0].vertices and b.faces is alike[0].faces
+               and (b.bbox_min, b.bbox_max) == (alike[0].bbox_min, alike[0].bbox_max)
+               for b in alike)
+    assert len({b.initial_pose.position for b in alike}) == 4
+    assert taller.vertices is not alike[0].vertices
+    assert taller.bbox_max[2] == pytest.approx(0.015, abs=1e-12)
+    assert alike[0].bbox_max[2] == pytest.approx(0.01, abs=1e-12)
+    assert heavier.vertices is not alike[0].vertices
+    # A 2 cm cube: 8 g at 1000 kg/m^3, 16 g at 2000 (closed form, to round-off).
+    assert alike[0].mass_kg == pytest.approx(0.008, rel=1e-9)
+    assert heavier.mass_kg == pytest.approx(0.016, rel=1e-9)
+    alone = make_session({**doc, "parts": [doc["parts"][-1]]}).build_scene().parts[0]
+    assert (alone.mass_kg, alone.inertia_cm, alone.bbox_min, alone.reach_from_origin) == \
+        (heavier.mass_kg, heavier.inertia_cm, heavier.bbox_min, heavier.reach_from_origin)

@@ -109,19 +109,29 @@ def initial_state(scene: Scene, *, time_ns: int = 0) -> WorldState:
     return WorldState(-1, time_ns, parts, base_pose, grips, _awake(parts), parts)
 
 
-def _awake(parts) -> tuple[int, ...]:
+def _awake(parts: tuple[PartState, ...]) -> tuple[int, ...]:
     """Indices of the parts a frame has to look at: all but those at rest on the table
     (STATIC), which nothing but a grab moves; the grab stage looks at every part."""
-    return tuple(i for i, part in enumerate(parts) if part.mode is not STATIC)
+    awake: list[int] = []  # (a loop: compiled, a generator here cost ~200 instructions a part)
+    for i in range(len(parts)):
+        if parts[i].mode is not STATIC:
+            awake.append(i)
+    return tuple(awake)
 
 
 def step(scene: Scene, collision: CollisionWorld, state: WorldState,
-         inputs: TrackerFrame) -> tuple[WorldState, tuple[Event, ...]]:
-    """Advance the world by one frame of tracker inputs."""
+         inputs: TrackerFrame, *,
+         scratch: list[PartState] | None = None) -> tuple[WorldState, tuple[Event, ...]]:
+    """Advance the world by one frame of tracker inputs.
+
+    ``scratch`` (``Stepper``'s): a list holding the objects of ``state.parts``, which the
+    step works in and leaves holding the new state's; without it, a copy. (A copy of a
+    scene of 200 parts and its freeing were ~5,000 instructions a frame.)"""
     awake = state.awake_parts()
     if awake is None:
         awake = _awake(state.parts)
-    f = _Frame(scene, collision, inputs, state.time_ns, list(state.parts),
+    f = _Frame(scene, collision, inputs, state.time_ns,
+               list(state.parts) if scratch is None else scratch,
                base_pose=state.base_pose, base_prev=state.base_pose, awake=awake)
     _read_hands(f, state)
     _move_base(f)
@@ -327,17 +337,20 @@ def _nearest(f: _Frame, position: sp.Vec3, radius: float, grabbable: tuple,
     held, held_cause = "", ""
     held_d = math.inf
     hx, hy, hz = position
-    stats = f.collision.stats
+    bodies = f.scene.parts
+    tests = 0
     for index, part in enumerate(f.parts):
         mode = part.mode
         takeable = mode in grabbable
         if not takeable and mode is not ONTOOL and not (other_hand and mode is INHAND):
             continue
         # Bounding sphere about the part frame's origin first: most parts are far away.
-        reach = f.scene.parts[index].reach_from_origin + radius
-        px, py, pz = part.pose.position
-        stats["bounding_tests"] += 1
-        if (px - hx) ** 2 + (py - hy) ** 2 + (pz - hz) ** 2 > reach * reach:
+        # (Products, not ``** 2``: compiled, a float's power is a generic call.)
+        reach = bodies[index].reach_from_origin + radius
+        p = part.pose.position
+        dx, dy, dz = p[0] - hx, p[1] - hy, p[2] - hz
+        tests += 1
+        if dx * dx + dy * dy + dz * dz > reach * reach:
             continue
         d = _distance_to_box(f.scene.parts[index], part.pose, position)
         if d > radius:
@@ -354,6 +367,7 @@ def _nearest(f: _Frame, position: sp.Vec3, radius: float, grabbable: tuple,
                 best, best_d, best_name = index, d, part.name
         elif d < held_d:
             held, held_cause, held_d = part.name, cause, d
+    f.collision.stats["bounding_tests"] += tests
     return best, best_d, held, held_cause
 
 
@@ -1919,13 +1933,16 @@ _STATIC_TEXT: str = Mode.STATIC.value
 
 def frame_record(scene: Scene, state: WorldState, inputs: TrackerFrame,
                  events: tuple[Event, ...], *,
-                 previous: tuple[WorldState, FrameRecord] | None = None) -> FrameRecord:
+                 previous: tuple[WorldState, FrameRecord] | None = None,
+                 scratch: list[PartSnapshot] | None = None) -> FrameRecord:
     """What a frame derived, in the shape the recording and the review consume.
 
     With ``previous`` (the state and record of the frame before), a part that no stage
     looked at keeps last frame's snapshot object, so a scene of many resting parts costs
     little here and in the encoder (``codec.FrameEncoder`` reuses an unchanged snapshot's
-    text). Only the parts awake before or after the step can have changed.
+    text). Only the parts awake before or after the step can have changed. ``scratch``
+    (``Stepper``'s, with ``previous``): a list holding the objects of the previous record's
+    parts, worked in instead of a copy and left holding this record's.
     """
     base = None
     # The base's velocity (its centre of mass's) and angular velocity, and where its centre
@@ -1948,10 +1965,12 @@ def frame_record(scene: Scene, state: WorldState, inputs: TrackerFrame,
     prev_awake = previous[0].awake_parts() if previous is not None else None
     awake = state.awake_parts()
     if previous is None or prev_awake is None or awake is None:
-        return FrameRecord(inputs, base, tuple(_snapshot_in(scene, i, p, moving)
-                                               for i, p in enumerate(state.parts)), events)
+        every = tuple(_snapshot_in(scene, i, p, moving) for i, p in enumerate(state.parts))
+        if scratch is not None:
+            scratch[:] = every
+        return FrameRecord(inputs, base, every, events)
     prev_state, prev_record = previous
-    snaps = list(prev_record.parts)
+    snaps = list(prev_record.parts) if scratch is None else scratch
     parts, prev_parts = state.parts, prev_state.parts
     for index in set(prev_awake).union(awake):
         if parts[index] is not prev_parts[index]:
@@ -1990,14 +2009,25 @@ class Stepper:
         self.collision = collision
         self.state: WorldState | None = None
         self.previous: tuple[WorldState, FrameRecord] | None = None
+        # Lists holding the objects of ``state.parts`` and of the last record's parts,
+        # reused frame to frame (``step``, ``frame_record``); None until there is a state,
+        # and while a frame is being worked (a step that raised leaves them half written).
+        self._parts: list[PartState] | None = None
+        self._snaps: list[PartSnapshot] | None = None
 
     def __call__(self, inputs: TrackerFrame) -> FrameRecord:
         state = self.state
         if state is None:
             state = initial_state(self.scene, time_ns=inputs.time_ns)
-        state, events = step(self.scene, self.collision, state, inputs)
-        record = frame_record(self.scene, state, inputs, events,
-                              previous=self.previous if _REUSE_SNAPSHOTS else None)
+        parts, snaps = self._parts, self._snaps
+        self._parts = self._snaps = None
+        state, events = step(self.scene, self.collision, state, inputs, scratch=parts)
+        previous = self.previous if _REUSE_SNAPSHOTS else None
+        record = frame_record(self.scene, state, inputs, events, previous=previous,
+                              scratch=snaps if previous is not None else None)
         self.state = state
         self.previous = (state, record)
+        self._parts = parts if parts is not None else list(state.parts)
+        self._snaps = snaps if snaps is not None and previous is not None \
+            else list(record.parts)
         return record
