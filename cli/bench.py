@@ -143,9 +143,14 @@ def _instructions(args, out: Path, command: str) -> None:
            title="Instructions a frame by stage, counted by valgrind's callgrind (setup: "
                  "instructions in all, once a file, not a frame; check_and_loop: a replay's "
                  "check with its loop and summary)")
+    resting = instructions.resting_ratio(rows)
+    if resting is not None:
+        print(f"one moving part among {instructions.RESTING} resting ones / alone, in "
+              f"instructions (target <= 1.5): replay {resting['replay']:.3f}x, after setup "
+              f"{resting['after_setup']:.3f}x, step {resting['step']:.3f}x\n")
     report.write_csv(rows, out / "instructions.csv")
     report.write_json(out / "instructions.json", rows=rows, command=command, short=args.short,
-                      against=args.against)
+                      against=args.against, resting_ratio=resting)
     print(f"wrote {out / 'instructions.csv'}, {out / 'instructions.json'}")
 
 

@@ -136,6 +136,18 @@ def test_against_gives_each_stage_as_a_ratio_to_the_count_before(tmp_path):
     assert instructions.against([_row("a")], zero)[0]["setup_vs_before"] is None
 
 
+def test_the_resting_parts_ratio_is_the_crowds_count_over_the_lone_parts():
+    # The moving part alone: 100 frames, 4,000 instructions of setup; among 200 resting
+    # parts: 30,000 of setup.
+    alone = {"session": "one_moving_0_resting", "frames": 100, "setup": 4000,
+             "replay_per_frame": 200, "step_per_frame": 50}
+    crowd = {"session": f"one_moving_{instructions.RESTING}_resting", "frames": 100,
+             "setup": 30000, "replay_per_frame": 500, "step_per_frame": 60}
+    ratio = instructions.resting_ratio([_row("a"), alone, crowd])
+    assert ratio == {"replay": 2.5, "after_setup": (500 - 300) / (200 - 40), "step": 1.2}
+    assert instructions.resting_ratio([_row("a"), alone]) is None
+
+
 @pytest.mark.parametrize("text, says", [
     (None, "cannot read it"),
     ("{not json", "is not JSON"),

@@ -200,9 +200,15 @@ def count(paths: list[Path], log=None) -> list[dict]:
     return rows_from([p.stem for p in paths], frames, totals)
 
 
+# The pay-only pair (``vade-bench --replay``'s ``static_parts`` table): one moving part
+# alone and among this many resting ones.
+RESTING = 200
+
+
 def run(short: bool, log=None) -> list[dict]:
-    """The goldens (two with ``short``) and the synthetic three-part session, 60 s (10 s
-    with ``short``), recorded here first."""
+    """The goldens (two with ``short``), the synthetic three-part session, and the moving
+    part alone and among ``RESTING`` resting ones, each 60 s (10 s with ``short``),
+    recorded here first."""
     from ..replay import record
     from .replay import GOLDENS, _session
     from .sessions import three_part_session
@@ -213,7 +219,29 @@ def run(short: bool, log=None) -> list[dict]:
         seconds = 10.0 if short else 60.0
         synthetic = Path(tmp) / f"three_parts_{seconds:g}s.mcap"
         record(_session(three_part_session(seconds)), synthetic)
-        return count((goldens[:2] if short else goldens) + [synthetic], log=log)
+        pair = []
+        for resting in (0, RESTING):
+            name = f"one_moving_{resting}_resting"
+            pair.append(Path(tmp) / f"{name}.mcap")
+            record(_session(three_part_session(seconds, static_parts=resting, gear=False,
+                                               box=False, name=name)), pair[-1])
+        return count((goldens[:2] if short else goldens) + [synthetic, *pair], log=log)
+
+
+def resting_ratio(rows: list[dict]) -> dict | None:
+    """The moving part among ``RESTING`` resting ones against it alone, in instructions:
+    the replay with its setup and without (the issue's target: at most 1.5x), and the
+    step; None without both rows."""
+    by = {row["session"]: row for row in rows}
+    alone, crowd = by.get("one_moving_0_resting"), by.get(f"one_moving_{RESTING}_resting")
+    if alone is None or crowd is None:
+        return None
+
+    def after_setup(row: dict) -> float:
+        return row["replay_per_frame"] - row["setup"] / row["frames"]
+    return {"replay": crowd["replay_per_frame"] / alone["replay_per_frame"],
+            "after_setup": after_setup(crowd) / after_setup(alone),
+            "step": crowd["step_per_frame"] / alone["step_per_frame"]}
 
 
 # What ``--against`` compares: the per-frame stages and the setup.
