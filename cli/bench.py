@@ -31,7 +31,7 @@ def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="vade-bench", description=__doc__.splitlines()[0])
     p.add_argument("--short", action="store_true",
                    help="CI mode: few step counts, short durations, one repeat (seconds; "
-                        "about a minute with --instructions)")
+                        "about two minutes with --instructions)")
     p.add_argument("-o", "--out", default="bench-out", metavar="DIR",
                    help="folder for the CSV, JSON and PNG files (default bench-out/)")
     which = p.add_mutually_exclusive_group()
