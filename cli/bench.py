@@ -145,9 +145,11 @@ def _instructions(args, out: Path, command: str) -> None:
                  "check with its loop and summary)")
     resting = instructions.resting_ratio(rows)
     if resting is not None:
+        def x(value: float | None) -> str:
+            return "-" if value is None else f"{value:.3f}x"
         print(f"one moving part among {instructions.RESTING} resting ones / alone, in "
-              f"instructions (target <= 1.5): replay {resting['replay']:.3f}x, after setup "
-              f"{resting['after_setup']:.3f}x, step {resting['step']:.3f}x\n")
+              f"instructions (target <= 1.5): replay {x(resting['replay'])}, after setup "
+              f"{x(resting['after_setup'])}, step {x(resting['step'])}\n")
     report.write_csv(rows, out / "instructions.csv")
     report.write_json(out / "instructions.json", rows=rows, command=command, short=args.short,
                       against=args.against, resting_ratio=resting)

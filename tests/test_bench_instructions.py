@@ -146,6 +146,8 @@ def test_the_resting_parts_ratio_is_the_crowds_count_over_the_lone_parts():
     ratio = instructions.resting_ratio([_row("a"), alone, crowd])
     assert ratio == {"replay": 2.5, "after_setup": (500 - 300) / (200 - 40), "step": 1.2}
     assert instructions.resting_ratio([_row("a"), alone]) is None
+    idle = instructions.resting_ratio([{**alone, "step_per_frame": 0}, crowd])
+    assert idle["step"] is None and idle["replay"] == 2.5
 
 
 @pytest.mark.parametrize("text, says", [

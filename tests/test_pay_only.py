@@ -273,13 +273,24 @@ def test_a_state_copied_with_other_parts_works_out_which_are_awake():
                                                             abs=1e-12)
 
 
-def test_the_steppers_kept_lists_give_what_fresh_copies_give():
+def test_a_shapes_key_keeps_apart_what_json_keeps_apart():
+    from vade_replay.scene import _shape_key
+    keys = [_shape_key([{"size": v}]) for v in
+            (None, float("inf"), float("-inf"), 1, 1.0, 2**70, "1")]
+    assert len(set(keys)) == len(keys)
+    assert _shape_key([{"b": 1, "a": [0.5]}]) == _shape_key([{"a": [0.5], "b": 1}])
+
+
+@pytest.mark.parametrize("reuse", [True, False])
+def test_the_steppers_kept_lists_give_what_fresh_copies_give(reuse, monkeypatch):
     """``Stepper`` works each frame in two lists kept from the frame before (the parts'
     states and their snapshots), where ``step`` and ``frame_record`` called alone copy the
     last frame's: the same states and records, frame by frame, as values and as objects
     (a resting part's snapshot is the one of the frame before either way)."""
     from vade_replay.replay import Stepper
     from vade_replay.step import frame_record, initial_state, step
+
+    monkeypatch.setattr(step_module, "_REUSE_SNAPSHOTS", reuse)
 
     for doc in (three_part_session(4.0),  # base in a moving hand, parts onto it and placed
                 three_part_session(4.0, static_parts=12, gear=False, box=False)):
@@ -294,7 +305,8 @@ def test_the_steppers_kept_lists_give_what_fresh_copies_give():
             if state is None:
                 state = initial_state(scene, time_ns=inputs.time_ns)
             state, events = step(scene, world, state, inputs)
-            record = frame_record(scene, state, inputs, events, previous=previous)
+            record = frame_record(scene, state, inputs, events,
+                                  previous=previous if reuse else None)
             assert _values([kept]) == _values([record]), inputs.frame
             assert stepper.state.parts == state.parts
             if previous is not None:
@@ -303,7 +315,7 @@ def test_the_steppers_kept_lists_give_what_fresh_copies_give():
                 shared += sum(same)
             previous, last_kept = (state, record), kept
             modes.update(p.mode for p in record.parts)
-        assert {"INHAND", "STATIC"} <= modes and shared > 0
+        assert {"INHAND", "STATIC"} <= modes and (shared > 0) == reuse
 
 
 def test_parts_made_alike_share_their_geometry_and_nothing_else():

@@ -588,11 +588,17 @@ def _geometry(doc: dict, length_factor: float, files: dict[str, bytes], *, where
 
 
 def _shape_key(doc: list) -> bytes:
-    """The text a shape is known by in one scene: the document sorted by key."""
+    """The text a shape is known by in one scene: the document sorted by key. orjson's,
+    except where it would write ``null`` (for None, and for NaN and the infinities, which
+    ``json`` keeps apart) or cannot write a number (an integer past 64 bits): there
+    ``json``'s, whose separators orjson never writes, so the two never give one key."""
     try:
-        return orjson.dumps(doc, option=orjson.OPT_SORT_KEYS)
-    except orjson.JSONEncodeError:  # (an integer past 64 bits, say)
+        key = orjson.dumps(doc, option=orjson.OPT_SORT_KEYS)
+    except orjson.JSONEncodeError:
+        key = b"null"
+    if b"null" in key:
         return json.dumps(doc, sort_keys=True).encode()
+    return key
 
 
 def _feature(doc: dict, key: str, f: float) -> tuple[sp.Vec3, sp.Vec3]:

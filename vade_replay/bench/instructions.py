@@ -239,9 +239,12 @@ def resting_ratio(rows: list[dict]) -> dict | None:
 
     def after_setup(row: dict) -> float:
         return row["replay_per_frame"] - row["setup"] / row["frames"]
-    return {"replay": crowd["replay_per_frame"] / alone["replay_per_frame"],
-            "after_setup": after_setup(crowd) / after_setup(alone),
-            "step": crowd["step_per_frame"] / alone["step_per_frame"]}
+
+    def ratio(a: float, b: float) -> float | None:
+        return a / b if b > 0 else None
+    return {"replay": ratio(crowd["replay_per_frame"], alone["replay_per_frame"]),
+            "after_setup": ratio(after_setup(crowd), after_setup(alone)),
+            "step": ratio(crowd["step_per_frame"], alone["step_per_frame"])}
 
 
 # What ``--against`` compares: the per-frame stages and the setup.
