@@ -41,6 +41,7 @@ import tempfile
 from pathlib import Path
 
 from ..errors import ConfigError
+from .sessions import RESTING, resting_name
 
 STAGES = ("floor", "open", "setup", "frames", "stepped", "replay")
 _MARKER = "zlib_adler32"  # the C function of zlib.adler32, the stages' marker
@@ -200,18 +201,13 @@ def count(paths: list[Path], log=None) -> list[dict]:
     return rows_from([p.stem for p in paths], frames, totals)
 
 
-# The pay-only pair (``vade-bench --replay``'s ``static_parts`` table): one moving part
-# alone and among this many resting ones.
-RESTING = 200
-
-
 def run(short: bool, log=None) -> list[dict]:
     """The goldens (two with ``short``), the synthetic three-part session, and the moving
     part alone and among ``RESTING`` resting ones, each 60 s (10 s with ``short``),
     recorded here first."""
     from ..replay import record
     from .replay import GOLDENS, _session
-    from .sessions import three_part_session
+    from .sessions import moving_among_resting, three_part_session
 
     probe()  # before minutes of recording and counting
     goldens = sorted(GOLDENS.glob("*.mcap"))
@@ -221,10 +217,9 @@ def run(short: bool, log=None) -> list[dict]:
         record(_session(three_part_session(seconds)), synthetic)
         pair = []
         for resting in (0, RESTING):
-            name = f"one_moving_{resting}_resting"
-            pair.append(Path(tmp) / f"{name}.mcap")
-            record(_session(three_part_session(seconds, static_parts=resting, gear=False,
-                                               box=False, name=name)), pair[-1])
+            doc = moving_among_resting(seconds, resting)
+            pair.append(Path(tmp) / f"{doc['name']}.mcap")
+            record(_session(doc), pair[-1])
         return count((goldens[:2] if short else goldens) + [synthetic, *pair], log=log)
 
 
@@ -233,7 +228,7 @@ def resting_ratio(rows: list[dict]) -> dict | None:
     the replay with its setup and without (the issue's target: at most 1.5x), and the
     step; None without both rows."""
     by = {row["session"]: row for row in rows}
-    alone, crowd = by.get("one_moving_0_resting"), by.get(f"one_moving_{RESTING}_resting")
+    alone, crowd = by.get(resting_name(0)), by.get(resting_name(RESTING))
     if alone is None or crowd is None:
         return None
 

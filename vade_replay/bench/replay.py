@@ -34,7 +34,7 @@ from ..recording import Recording, library_read_and_decode, read_and_decode
 from ..replay import record, replay, simulate
 from ..session import load, parse
 from . import report
-from .sessions import three_part_session
+from .sessions import RESTING, moving_among_resting, three_part_session
 
 GOLDENS = Path(__file__).resolve().parents[2] / "recordings"
 
@@ -161,9 +161,8 @@ def _static_parts(short: bool, work: Path, repeats: int) -> list[dict]:
     """The moving part alone and among 200 resting ones, timed in turn, round by round."""
     duration = 10.0 if short else 60.0
     rows, runs = [], []
-    for static in (0, 200):
-        doc = three_part_session(duration, static_parts=static, gear=False, box=False,
-                                 name=f"one_moving_{static}_resting")
+    for static in (0, RESTING):
+        doc = moving_among_resting(duration, static)
         session = _session(doc)
         rows.append(_end_to_end(doc["name"], session, work, 1))
         scene = session.build_scene()
@@ -176,7 +175,7 @@ def _static_parts(short: bool, work: Path, repeats: int) -> list[dict]:
         runs += [simulate_only, lambda path=path: replay(Recording(path))]
     sim_alone, replay_alone, sim_crowd, replay_crowd = _interleaved(runs, max(repeats, 3))
     for row, static, t_sim, t_replay in ((rows[0], 0, sim_alone, replay_alone),
-                                         (rows[1], 200, sim_crowd, replay_crowd)):
+                                         (rows[1], RESTING, sim_crowd, replay_crowd)):
         row.update(table="static_parts", resting_parts=static, simulate_s=t_sim,
                    replay_s=t_replay, replay_over_read=t_replay / row["read_decode_s"],
                    x_real_time=row["sim_s"] / t_replay,

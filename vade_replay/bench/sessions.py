@@ -105,3 +105,18 @@ def three_part_session(duration_s: float, *, static_parts: int = 0, gear: bool =
         devices["left_hand"] = [{"t": 0, "position": [0.0, 0.2, 1.0], "euler_deg": [0, 0, 0],
                                  "grip": True}]
     return doc
+
+
+# The pay-only pair of ``vade-bench --replay`` (its ``static_parts`` table) and of
+# ``--instructions``: one moving part alone and among this many resting ones.
+RESTING = 200
+
+
+def resting_name(resting: int) -> str:
+    return f"one_moving_{resting}_resting"
+
+
+def moving_among_resting(duration_s: float, resting: int) -> dict:
+    """The cylinder's pick-lift-drop alone (``resting`` 0) or among ``resting`` boxes."""
+    return three_part_session(duration_s, static_parts=resting, gear=False, box=False,
+                              name=resting_name(resting))
