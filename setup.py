@@ -17,7 +17,7 @@ import shutil
 import sys
 import tempfile
 
-from setuptools import setup
+from setuptools import Extension, setup
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 NATIVE = runpy.run_path(os.path.join(HERE, "vade_replay", "native.py"))
@@ -35,8 +35,8 @@ def _pure(reason):
                          "the compiled build")
     _warn(f"{reason}: the per-frame modules run as Python (slower, same results)")
     if IN_PLACE:  # an earlier in-place build would shadow the sources
-        for path in NATIVE["MODULES"]:
-            stem = os.path.join(HERE, path[:-3])
+        for path in (*NATIVE["MODULES"], *NATIVE["C_EXTENSIONS"].values()):
+            stem = os.path.join(HERE, os.path.splitext(path)[0])
             for old in glob.glob(stem + ".*.so") + glob.glob(stem + "__mypyc.*.so") \
                     + glob.glob(stem + ".*.pyd") + glob.glob(stem + "__mypyc.*.pyd"):
                 os.remove(old)
@@ -48,7 +48,7 @@ def _pure(reason):
 
 def _record_sources():
     hashes = {path: NATIVE["source_hash"](os.path.join(HERE, path))
-              for path in NATIVE["MODULES"]}
+              for path in (*NATIVE["MODULES"], *NATIVE["C_EXTENSIONS"].values())}
     with open(os.path.join(HERE, NATIVE["BUILT_FROM"]), "w", encoding="utf-8") as f:
         f.write('"""Written by setup.py: the sources the compiled modules were built '
                 'from (SHA-256)."""\n\nSOURCES = ' + pprint.pformat(hashes) + "\n")
@@ -77,6 +77,8 @@ def ext_modules():
     finally:
         shutil.rmtree(cache, ignore_errors=True)
     _record_sources()
+    # The C extensions (their Python references run where they are not built).
+    extensions += [Extension(name, [path]) for name, path in NATIVE["C_EXTENSIONS"].items()]
     for extension in extensions:
         # No compiler: the pure-Python package still installs (not where CI requires it).
         extension.optional = not NATIVE["compiled_required"]()

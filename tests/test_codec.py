@@ -119,6 +119,93 @@ def test_repr_text_rewrites_orjson_s_notation_as_repr_writes_it():
     assert min(forms.values()) > 1000, forms  # both rewritings exercised, not only repr
 
 
+def _writers():
+    """The frame writer's implementations this install has: the Python reference, and the
+    C extension where it is built."""
+    out = [codec._frame_json_py]
+    try:
+        from vade_replay._framejson import frame_messages
+    except ImportError:
+        pass
+    else:
+        out.append(frame_messages)
+    return out
+
+
+def _one_part(values) -> tuple:
+    """``frame_messages``' arguments for one part (the base) of these 13 numbers."""
+    return (orjson.dumps(list(values)), (b'"p"',), (b'"INSPACE"',), True,
+            b',"frame":3,"parts":[', b'],"time_ns":7}', b'{"nsec":7,"sec":0}')
+
+
+def test_the_frame_writers_write_json_s_numbers_or_decline():
+    """Both writers (C and its Python reference) give the same bytes, or both None, for
+    orjson's text of every decimal exponent, the notation boundaries and random bit
+    patterns; where they write, the numbers read back as ``json``'s text of them. Nearly
+    every number from 1e-9 to 1e16 is written (both rewritten forms among them)."""
+    rng = np.random.default_rng(11)
+    values = [float(f"{m!r}e{e}") for e in range(-324, 309)
+              for m in (1.0, 1.5, 9.999999999999998, *rng.uniform(1.0, 10.0, 3).tolist())]
+    for edge in (1e-5, 1e-4, 1e-9, 1e-10, 1e15, 1e16):
+        values += [math.nextafter(edge, 0.0), edge, math.nextafter(edge, math.inf)]
+    bits = rng.integers(0, 2**64, size=13_000, dtype=np.uint64)
+    values += [float(v) for v in bits.view(np.float64) if np.isfinite(v)]
+    values += [1e-5 * (1.0 + i / 500.0) for i in range(4500)]  # 0.0000ddd
+    values += [1e-9 * (1.0 + i / 500.0) for i in range(4500)]  # d.ddde-N
+    values = [v for x in values for v in (x, -x)] + [0.0, -0.0]
+    writers = _writers()
+    written = declined = 0
+    forms = {"e-0N": 0, "e-05": 0}
+    for start in range(0, len(values) - 12, 13):
+        chunk = values[start:start + 13]
+        out = [w(*_one_part(chunk)) for w in writers]
+        assert all(o == out[0] for o in out), chunk
+        if out[0] is None:
+            assert any(not (v == 0.0 or 1e-9 <= abs(v) < 1e16) for v in chunk), chunk
+            declined += 1
+            continue
+        written += 1
+        part = PartSnapshot("p", "INSPACE", tuple(chunk[6:9]), tuple(chunk[9:13]),
+                            tuple(chunk[3:6]), tuple(chunk[0:3]))
+        reference = codec.derived_messages(FrameRecord(TrackerFrame(3, 7, ()), part, ()))
+        assert list(out[0]) == [m for _, m in reference], chunk
+        text = out[0][0].decode()
+        forms["e-05"] += "e-05" in text
+        forms["e-0N"] += any(f"e-0{d}" in text for d in range(6, 10))
+    assert written > 1000 and declined > 100 and min(forms.values()) > 200, \
+        (written, declined, forms)
+
+
+@pytest.mark.parametrize("tokens", [
+    b"null", b"true", b"false", b"1e16", b"1.5e+16", b"1e-10", b"1.5e-7e-1", b"1..5",
+    b"0.00000", b"0.00001x", b"-", b"", b"1.0.0000", b"00.00001", b"1e-0"])
+def test_the_frame_writers_decline_what_they_do_not_cover_alike(tokens):
+    numbers = b"[" + b",".join([b"0.5"] * 12 + [tokens]) + b"]"
+    args = (numbers,) + _one_part([0.5] * 13)[1:]
+    out = [w(*args) for w in _writers()]
+    assert all(o is None for o in out), out
+
+
+def test_the_frame_writers_write_the_reference_s_messages():
+    """Two parts and a base, and no base: the messages ``derived_messages`` writes."""
+    parts = tuple(PartSnapshot(f"p{i}", "INSPACE", (0.1 * i, 2.5e-7, -1.0), (0.0, 0.0, 3e-5, 1.0),
+                               (1.0, -0.0, 1e-6), (0.0, 1.25, 7.0)) for i in range(2))
+    base = PartSnapshot('base "b"\u00e9', "BASE", (1.0, 2.0, 3.0), (0.0, 0.0, 0.0, 1.0),
+                        (0.0,) * 3, (0.0,) * 3)
+    for b in (base, None):
+        record = FrameRecord(TrackerFrame(9, 1_500_000_001, ()), b, parts)
+        items = parts if b is None else (b, *parts)
+        numbers = orjson.dumps([x for s in items for v in (s.angular_velocity,
+                                s.linear_velocity, s.position, s.rotation_xyzw) for x in v])
+        args = (numbers, tuple(json.dumps(s.name).encode() for s in items),
+                tuple(json.dumps(s.mode).encode() for s in items), b is not None,
+                b',"frame":9,"parts":[', b'],"time_ns":1500000001}',
+                b'{"nsec":500000001,"sec":1}')
+        reference = [m for _, m in codec.derived_messages(record)]
+        for writer in _writers():
+            assert list(writer(*args)) == reference, writer
+
+
 def test_number_texts_are_json_s_for_random_bit_patterns():
     """Every finite float64 is as likely: 65,000 of them."""
     bits = np.random.default_rng(6).integers(0, 2**64, size=65_000, dtype=np.uint64)

@@ -63,6 +63,7 @@ def test_a_compiled_build_where_one_is_required():
     a reason to skip the cross-build check below."""
     if native.compiled_required() and not native.pure_requested():
         assert len(COMPILED) == len(native.MODULES), native.describe()
+        assert native.c_extensions() == tuple(native.C_EXTENSIONS), native.describe()
     else:
         pytest.skip(f"{native.REQUIRE_ENV} is not set ({native.describe()})")
 
@@ -173,3 +174,30 @@ def test_the_summary_says_which_build_ran(tmp_path):
     summary = replay(Recording(RECORDINGS / "drop_on_table.mcap")).to_dict()
     assert summary["build"] == native.describe()
     assert json.loads(json.dumps(summary))["build"].startswith(("compiled", "pure Python"))
+
+
+def test_an_edited_c_source_is_stale_and_its_python_reference_runs(tmp_path):
+    """The C extensions are held to their sources like the compiled modules: a build's
+    hashes name them, and an edit since makes them stale (the package then runs the
+    Python references, ``native.c_enabled``)."""
+    (tmp_path / "vade_replay").mkdir()
+    suffix = native.importlib.machinery.EXTENSION_SUFFIXES[0]
+    sources = list(native.C_EXTENSIONS.values())
+    for path in sources:
+        (tmp_path / path).write_text(f"/* {path} */\n")
+        (tmp_path / (path[:-2] + suffix)).write_text("")
+    assert native.stale(str(tmp_path)) == sources
+    hashes = {path: native.source_hash(str(tmp_path / path)) for path in sources}
+    (tmp_path / native.BUILT_FROM).write_text(f"SOURCES = {hashes!r}\n")
+    assert native.stale(str(tmp_path)) == []
+    (tmp_path / sources[0]).write_text("/* edited */\n")
+    assert native.stale(str(tmp_path)) == sources[:1]
+
+
+def test_the_pure_switch_turns_the_c_writer_off_too():
+    script = ("from vade_replay import codec, native; "
+              "print(codec._FRAME_JSON is codec._frame_json_py, native.c_extensions())")
+    done = subprocess.run([sys.executable, "-P", "-c", script], capture_output=True,
+                          text=True, timeout=120, env=dict(os.environ, VADE_REPLAY_PURE="1"))
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["True", "()"]

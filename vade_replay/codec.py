@@ -3,8 +3,11 @@
 ``json`` writes floats with ``repr``, the shortest text that reads back to the same
 float64, so a decoded recording holds exactly the numbers that were simulated. Keys are
 sorted and separators fixed, so equal values give equal bytes. A replay checks the
-recorded messages by value (``FrameEncoder.matches``: parsing them costs about half of
-writing ours) and writes and walks them only where they differ.
+recorded messages by writing ours and comparing bytes (``FrameEncoder.check``: a frame's
+numbers by one ``orjson.dumps``, the text around them by ``_framejson.c``, about a third
+of the cost of parsing the recorded ones), and by value (``FrameEncoder.matches``) only
+where the bytes differ, so that another writer's spacing or notation of the same numbers
+still matches.
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ from typing import Any, Final
 import orjson
 
 from . import events as ev
+from . import native
 from .errors import RecordingError
 from .frames import (MAX_ABS_POSITION_M, DeviceSample, FrameRecord, PartSnapshot,
                      TrackerFrame, changed_indices)
@@ -320,9 +324,112 @@ def json_numbers(values: tuple) -> list[str] | None:
     return pieces
 
 
-# How many parts a frame may list for ``FrameEncoder.check`` to parse it: a part costs ~1.4 us
-# parsed and compared, ~2.4 us written (only if it moved) and next to nothing if it did not.
-_PARSE_AT_MOST: Final = 8
+_QUOTED_BYTES: dict[str, bytes] = {}
+
+
+def _quoted_bytes(text: str) -> bytes:
+    """``json_string(text)`` as bytes, remembered likewise."""
+    quoted = _QUOTED_BYTES.get(text)
+    if quoted is None:
+        quoted = json_string(text).encode()
+        if len(_QUOTED_BYTES) < 4096:
+            _QUOTED_BYTES[text] = quoted
+    return quoted
+
+
+_NOT_NUMBER_BYTES: Final = b"0123456789.-e"
+
+
+def _json_number_py(token: bytes) -> bytes | None:
+    """``json``'s text of a number from orjson's ``token``, or None where the two notations
+    are not the ones handled: ``d.ddde-N`` (one-digit negative exponent: repr writes
+    ``e-0N``) and ``0.0000ddd`` (1e-5 <= |x| < 1e-4: repr writes ``d.dde-05``); any other
+    exponent, anything but [-0-9.e] (orjson's ``null``, ``true``), two dots. Else the token
+    as it is
+    (``json_numbers``: the digits are the same shortest ones). ``_framejson.c``'s
+    ``json_number``, the same cases."""
+    negative = token.startswith(b"-")
+    body = token[1:] if negative else token
+    if not body or body.translate(None, _NOT_NUMBER_BYTES) or body.count(b".") > 1:
+        return None
+    n = len(body)
+    if b"e" in body:
+        if n >= 4 and body[n - 3:n - 1] == b"e-" and b"1" <= body[n - 1:] <= b"9" \
+                and b"e" not in body[:n - 3]:
+            return token[:-1] + b"0" + token[-1:]
+        return None
+    at = body.find(b"0.0000")
+    if at < 0:
+        return token
+    digits = body[6:]
+    if at != 0 or not digits or digits.startswith(b"0") or not digits.isdigit():
+        return None
+    rest = b"." + digits[1:] if len(digits) > 1 else b""
+    return (b"-" if negative else b"") + digits[:1] + rest + b"e-05"
+
+
+def _json_part(t: list[bytes], name: bytes, mode: bytes) -> bytes:
+    return b"".join((b'{"angular_velocity":[', t[0], b",", t[1], b",", t[2],
+                     b'],"linear_velocity":[', t[3], b",", t[4], b",", t[5], b'],"mode":', mode,
+                     b',"name":', name, b',"position":[', t[6], b",", t[7], b",", t[8],
+                     b'],"xyzw":[', t[9], b",", t[10], b",", t[11], b",", t[12], b"]}"))
+
+
+def _json_transform(t: list[bytes], name: bytes, stamp: bytes) -> bytes:
+    return b"".join((b'{"child_frame_id":', name,
+                     b',"parent_frame_id":"world","rotation":{"w":', t[12], b',"x":', t[9],
+                     b',"y":', t[10], b',"z":', t[11], b'},"timestamp":', stamp,
+                     b',"translation":{"x":', t[6], b',"y":', t[7], b',"z":', t[8], b"}}"))
+
+
+def _frame_json_py(numbers: bytes, names: tuple, modes: tuple, with_base: bool,
+                   middle: bytes, end: bytes, stamp: bytes) -> tuple[bytes, bytes] | None:
+    """A frame's /parts and /foxglove/transforms bytes from ``numbers``, orjson's text of
+    the 13 numbers of each part shown (angular velocity, linear velocity, position, xyzw),
+    the base's first ``with_base``; ``names`` and ``modes`` each part's, quoted as ``json``
+    quotes them; ``middle`` the /parts text after the base up to the "[" of its parts,
+    ``end`` after their "]", ``stamp`` the transforms' timestamp. None where a number is not
+    covered (``_json_number_py``) or the text is not 13 numbers a part. The reference of
+    ``_framejson.frame_messages``, which ``FrameEncoder`` runs where it is built."""
+    k = len(names)
+    if k == 0 or len(numbers) < 2 or not numbers.startswith(b"[") \
+            or not numbers.endswith(b"]"):
+        return None
+    tokens: list[bytes] = []
+    for piece in numbers[1:-1].split(b","):
+        text = _json_number_py(piece)
+        if text is None:
+            return None
+        tokens.append(text)
+    if len(tokens) != 13 * k:
+        return None
+    first = 1 if with_base else 0
+    base = _json_part(tokens[:13], names[0], modes[0]) if with_base else b"null"
+    parts = b",".join([_json_part(tokens[13 * i:13 * i + 13], names[i], modes[i])
+                       for i in range(first, k)])
+    transforms = b",".join([_json_transform(tokens[13 * i:13 * i + 13], names[i], stamp)
+                            for i in range(k)])
+    return (b"".join((b'{"base":', base, middle, parts, end)),
+            b"".join((b'{"transforms":[', transforms, b"]}")))
+
+
+def _frame_json_writer():
+    """``_framejson.frame_messages`` where it is built and in use (``native.c_enabled``),
+    else its Python reference."""
+    if native.c_enabled():
+        try:
+            from ._framejson import frame_messages
+            return frame_messages
+        except ImportError:
+            pass
+    return _frame_json_py
+
+
+_FRAME_JSON: Final = _frame_json_writer()
+# A frame showing more parts than this (a key frame of a scene with many resting ones) is
+# written from the texts kept from frame to frame: a part that did not move costs nothing
+# there, where the numbers' writer writes every part it is given.
+_NUMBERS_AT_MOST: Final = 16
 
 
 class FrameEncoder:
@@ -379,6 +486,72 @@ class FrameEncoder:
         tail = f',"translation":{{"x":{r[6]},"y":{r[7]},"z":{r[8]}}}}}'
         return part, head, tail
 
+    def _by_numbers(self, record: FrameRecord, items: tuple, shown: list[int], first: int,
+                    complete: str) -> list[tuple[str, bytes]] | None:
+        """The two messages with every number of the parts shown written by one
+        ``orjson.dumps`` and the text around them by ``_FRAME_JSON`` (C where built), or
+        None where it does not cover a number."""
+        numbers: list[Any] = []
+        names: list[bytes] = []
+        modes: list[bytes] = []
+        for i in shown:
+            s: PartSnapshot = items[i]
+            # Each field read once into a local and indexed (compiled, a fixed-length tuple
+            # field is a C struct: reading it into len() or a star-unpack builds a new
+            # tuple of new floats each time).
+            av, lv, p, q = s.angular_velocity, s.linear_velocity, s.position, s.rotation_xyzw
+            if not (len(av) == len(lv) == len(p) == 3 and len(q) == 4):
+                return None
+            numbers.extend((av[0], av[1], av[2], lv[0], lv[1], lv[2], p[0], p[1], p[2],
+                            q[0], q[1], q[2], q[3]))
+            names.append(_quoted_bytes(s.name))
+            modes.append(_quoted_bytes(s.mode))
+        try:
+            text = orjson.dumps(numbers)
+        except TypeError:  # orjson.JSONEncodeError: a type it does not write
+            return None
+        t = record.time_ns
+        sec, nsec = divmod(t, 10**9)
+        written = _FRAME_JSON(text, tuple(names), tuple(modes), first == 1,
+                              f'{complete},"frame":{record.frame},"parts":['.encode(),
+                              f'],"time_ns":{t}}}'.encode(),
+                              f'{{"nsec":{nsec},"sec":{sec}}}'.encode())
+        if written is None:
+            return None
+        return [(PARTS_TOPIC, written[0]), (FOXGLOVE_TOPIC, written[1])]
+
+    def _by_texts(self, record: FrameRecord, items: tuple, listed: list[int],
+                  shown: list[int], first: int,
+                  complete: str) -> list[tuple[str, bytes]] | None:
+        """The two messages from each part's text, kept from frame to frame while its
+        snapshot is the same object; None where ``_fragments`` does not cover one."""
+        n = len(items)
+        if len(self._items) != n:
+            self._items = (None,) * n
+            self._texts, self._heads, self._tails = [""] * n, [""] * n, [""] * n
+            self._glue = [""] * (n + 1)
+        texts, heads, tails, glue = self._texts, self._heads, self._tails, self._glue
+        for i in changed_indices(items, self._items):
+            fragments = self._fragments(items[i])
+            if fragments is None:
+                return None
+            texts[i], heads[i], tails[i] = fragments
+            glue[i] = heads[i] if i == 0 else tails[i - 1] + "," + heads[i]
+            glue[i + 1] = tails[i] if i == n - 1 else tails[i] + "," + heads[i + 1]
+        self._items = items  # tuples: never changed in place
+        frame, t = record.frame, record.time_ns
+        sec, nsec = divmod(t, 10**9)
+        stamp = f'{{"nsec":{nsec},"sec":{sec}}}'
+        base = "null" if record.base is None else texts[0]
+        parts_text = ",".join([texts[i] for i in listed])
+        if len(shown) == n:
+            transforms = stamp.join(glue)
+        else:
+            transforms = ",".join([heads[i] + stamp + tails[i] for i in shown])
+        return [(PARTS_TOPIC, (f'{{"base":{base}{complete},"frame":{frame},'
+                               f'"parts":[{parts_text}],"time_ns":{t}}}').encode()),
+                (FOXGLOVE_TOPIC, ('{"transforms":[' + transforms + "]}").encode())]
+
     def derived_messages(self, record: FrameRecord) -> list[tuple[str, bytes]]:
         """The same list, the same bytes, as ``derived_messages(record)``."""
         frame, t = record.frame, record.time_ns
@@ -391,45 +564,30 @@ class FrameEncoder:
         if type(frame) is not int or type(t) is not int or n == 0:
             self._items = ()
             return self._fallback(record, previous_items, previous_time)
-        if len(self._items) != n:
-            self._items = (None,) * n
-            self._texts, self._heads, self._tails = [""] * n, [""] * n, [""] * n
-            self._glue = [""] * (n + 1)
-        texts, heads, tails, glue = self._texts, self._heads, self._tails, self._glue
-        changed = changed_indices(items, self._items)
-        for i in changed:
-            fragments = self._fragments(items[i])
-            if fragments is None:
-                self._items = ()
-                return self._fallback(record, previous_items, previous_time)
-            texts[i], heads[i], tails[i] = fragments
-            glue[i] = heads[i] if i == 0 else tails[i - 1] + "," + heads[i]
-            glue[i + 1] = tails[i] if i == n - 1 else tails[i] + "," + heads[i + 1]
-        self._items = items  # tuples: never changed in place
-        sec, nsec = divmod(t, 10**9)
-        stamp = f'{{"nsec":{nsec},"sec":{sec}}}'
         first = 0 if record.base is None else 1
-        base = "null" if record.base is None else texts[0]
+        listed: list[int]
+        shown: list[int]
         if self.parts == PARTS_CHANGED and len(previous_items) == n \
                 and not keyframe(t, previous_time):
             # Only what differs from last frame (by value: a new snapshot equal to the old
             # one is not listed), and the base, whose transform is always written. Against
             # last frame's snapshots, not the cached texts' (``changed``): after frames
-            # checked by value (``matches``) the cache is older than last frame.
+            # written by numbers or checked by value the cache is older than last frame.
             listed = [i for i in changed_indices(items, previous_items)
                       if i >= first and items[i] != previous_items[i]]
-            parts_text = ",".join([texts[i] for i in listed])
-            shown = ([0] if first else []) + listed
-            transforms = ",".join([heads[i] + stamp + tails[i] for i in shown])
-            out = [(PARTS_TOPIC, (f'{{"base":{base},"complete":false,"frame":{frame},'
-                                  f'"parts":[{parts_text}],"time_ns":{t}}}').encode()),
-                   (FOXGLOVE_TOPIC, ('{"transforms":[' + transforms + "]}").encode())]
+            shown = [0] + listed if first else listed
+            complete = ',"complete":false'
         else:
-            parts_text = ",".join(texts[first:])
+            listed = list(range(first, n))
+            shown = list(range(n))
             complete = ',"complete":true' if self.parts == PARTS_CHANGED else ""
-            out = [(PARTS_TOPIC, (f'{{"base":{base}{complete},"frame":{frame},'
-                                  f'"parts":[{parts_text}],"time_ns":{t}}}').encode()),
-                   (FOXGLOVE_TOPIC, ('{"transforms":[' + stamp.join(glue) + "]}").encode())]
+        out = self._by_numbers(record, items, shown, first, complete) \
+            if 0 < len(shown) <= _NUMBERS_AT_MOST else None
+        if out is None:
+            out = self._by_texts(record, items, listed, shown, first, complete)
+            if out is None:
+                self._items = ()
+                return self._fallback(record, previous_items, previous_time)
         for event in record.events:
             out.append((EVENT_TOPIC_PREFIX + event.kind, dumps(ev.to_dict(event))))
         return out
@@ -438,18 +596,26 @@ class FrameEncoder:
     def check(self, record: FrameRecord,
               recorded: list[tuple[str, bytes]]) -> list[tuple[str, bytes]] | None:
         """``None`` when ``recorded`` holds what this frame derives; else
-        ``derived_messages(record)``, for a comparison of bytes and the report. Either way
-        the encoder moves past the frame.
+        ``derived_messages(record)``, for the report. Either way the encoder moves past
+        the frame.
 
-        By value (``matches``) where a frame lists few parts. Where it lists many (a key
-        frame of a scene with many resting parts) by writing ours and comparing bytes: the
-        text of a part that did not move is kept from frame to frame, so that costs the
-        parts that moved, where parsing costs every part listed (two hundred resting parts
-        made a replay 1.7x the moving part's alone, against 1.2x)."""
-        if self.matches(record, recorded, _PARSE_AT_MOST):
-            return None
+        By bytes first: ours written (``derived_messages``: a frame's numbers by one
+        ``orjson.dumps``, the text around them in C) and compared, which costs less than
+        parsing the recorded messages (a three-part frame: ~25,000 instructions against
+        ~88,000 parsed and compared by value). Where the bytes differ, by value
+        (``matches``): text that reads back to the same numbers but is not this encoder's
+        (another writer's spacing or notation) matches; a frame that differs is reported
+        with ours."""
+        last, last_time = self._last, self._time_ns
         derived = self.derived_messages(record)
-        return None if derived == recorded else derived
+        if derived == recorded:
+            return None
+        after, after_time = self._last, self._time_ns
+        self._last, self._time_ns = last, last_time
+        if self.matches(record, recorded):
+            return None
+        self._last, self._time_ns = after, after_time
+        return derived
 
     def matches(self, record: FrameRecord, recorded: list[tuple[str, bytes]],
                 most: int = 1 << 30) -> bool:
@@ -463,9 +629,9 @@ class FrameEncoder:
         spacing or number notation) matches: the check is of the session, not of the
         formatting, which the writer's own tests hold (``tests/test_codec.py``).
 
-        Parsing the recording's numbers costs about half of writing ours: a replay then
-        pays a read-and-decode, the step, and a comparison of floats. A frame listing more
-        than ``most`` parts and transforms is not checked: ``False``, as for a difference."""
+        ``check`` calls this only where the bytes differ: parsing costs about three times
+        writing ours. A frame listing more than ``most`` parts and transforms is not
+        checked: ``False``, as for a difference."""
         frame, t = record.frame, record.time_ns
         base = record.base
         items = record.parts if base is None else (base, *record.parts)

@@ -41,6 +41,10 @@ MODULES = (
     "vade_replay/collision.py",
     "vade_replay/analysis.py",
 )
+# Written in C, with its Python reference beside it in the module that calls it: the frame
+# messages written around orjson's numbers (``codec.FrameEncoder``, ``codec._frame_json_py``).
+# Extension name -> source, from the project root. Built, and switched off, with the rest.
+C_EXTENSIONS = {"vade_replay._framejson": "vade_replay/_framejson.c"}
 PURE_ENV = "VADE_REPLAY_PURE"
 # Set by CI: a build that cannot compile fails instead of installing pure Python, and the
 # cross-build tests fail instead of skipping.
@@ -86,17 +90,32 @@ def compiled() -> tuple[str, ...]:
     return tuple(out)
 
 
+def c_extensions() -> tuple[str, ...]:
+    """The extensions of ``C_EXTENSIONS`` that are built and in use (``c_enabled``)."""
+    if not c_enabled():
+        return ()
+    out = []
+    for name in C_EXTENSIONS:
+        try:
+            importlib.import_module(name)
+        except ImportError:
+            continue
+        out.append(name)
+    return tuple(out)
+
+
 def describe() -> str:
-    """One line for summaries and benchmark tables: ``compiled 11/11 (mypyc)`` or
+    """One line for summaries and benchmark tables: ``compiled 12/12 (mypyc), C 1/1`` or
     ``pure Python``."""
     names = compiled()
     if not names:
         return "pure Python" + (f" ({PURE_ENV}=1)" if pure_requested() else "")
-    return f"compiled {len(names)}/{len(MODULES)} (mypyc)"
+    return f"compiled {len(names)}/{len(MODULES)} (mypyc), C {len(c_extensions())}/" \
+        f"{len(C_EXTENSIONS)}"
 
 
 def _extension(source: str) -> str | None:
-    stem = source[:-3]
+    stem = os.path.splitext(source)[0]
     for suffix in importlib.machinery.EXTENSION_SUFFIXES:
         if os.path.isfile(stem + suffix):
             return stem + suffix
@@ -109,7 +128,7 @@ def stale(root: str) -> list[str]:
     (by content: ``BUILT_FROM`` holds the hashes), or compiled by a build that left none."""
     hashes = built_from(root)
     out = []
-    for path in MODULES:
+    for path in (*MODULES, *C_EXTENSIONS.values()):
         source = os.path.join(root, path)
         if _extension(source) is None or not os.path.isfile(source):
             continue
@@ -135,6 +154,15 @@ class _SourcesFirst(importlib.abc.MetaPathFinder):
         return None
 
 
+_C_OFF = False  # set by ``install_switch``: the C extensions' Python references run instead
+
+
+def c_enabled() -> bool:
+    """Whether the C extensions are to be used where built: not with ``VADE_REPLAY_PURE=1``,
+    nor where any compiled module or C source changed since it was built."""
+    return not _C_OFF
+
+
 def install_switch(package_dir: str) -> None:
     """Called on importing the package. With ``VADE_REPLAY_PURE=1``, or when a compiled
     module was not built from its source as it is now (``stale``), every module of
@@ -142,11 +170,14 @@ def install_switch(package_dir: str) -> None:
     one stale module among them would still run its old compiled code."""
     if any(isinstance(f, _SourcesFirst) for f in sys.meta_path):
         return
+    global _C_OFF
     if pure_requested():
+        _C_OFF = True
         sys.meta_path.insert(0, _SourcesFirst())
         return
     changed = stale(os.path.dirname(package_dir))
     if changed:
+        _C_OFF = True
         import warnings
         warnings.warn(f"vade_replay: {', '.join(changed)} changed since it was compiled; "
                       "running the Python sources (slower, same results). Install the "

@@ -1920,8 +1920,8 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
             for batch, stepped in _stepped(recording.frames(), advance, _INPUTS):
                 for recorded, replayed in zip(batch, stepped):
                     if writer is None:
-                        # The check by value, or by bytes where a frame lists many parts
-                        # (``FrameEncoder.check``); ours are written only where they differ.
+                        # The check by bytes, and by value where they differ
+                        # (``FrameEncoder.check``).
                         ours = encoder.check(replayed, recorded.derived)
                         derived = recorded.derived if ours is None else ours
                     else:

@@ -1,0 +1,324 @@
+/* A frame's /parts and /foxglove/transforms messages from orjson's text of their numbers.
+
+   ``codec.FrameEncoder`` writes the numbers of the parts a frame shows with one
+   ``orjson.dumps`` (shortest digits, Ryu) and hands the text here with the parts' quoted
+   names and modes; this cuts the numbers apart, puts each in ``json``'s notation and writes
+   both messages around them. The same function in Python is ``codec._frame_json_py``, the
+   reference this is held to bit for bit (``tests/test_codec.py``); where a number is not in
+   a form handled here, or the text is not as expected, the result is None and the caller
+   writes the frame the slower way. No Python object is made per number, which is where
+   the Python writer spent its time (a list of texts split, rejoined by f-strings).
+
+   The notation: orjson writes a float as ``repr`` does (``json``'s text of it) except
+     d.ddde-N   (a one-digit negative exponent)        repr: d.ddde-0N
+     0.0000ddd  (1e-5 <= |x| < 1e-4)                   repr: d.dde-05
+   and other exponents, which are left to the Python writer (None here). Tokens are taken
+   only as [-0-9.e]: "null" (orjson's NaN and infinity, which json refuses), true, false
+   and anything else give None. */
+
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <string.h>
+
+#define NUMBERS_PER_PART 13
+
+typedef struct {
+    Py_ssize_t at;  /* offset in the scratch buffer */
+    Py_ssize_t n;   /* length */
+} token;
+
+/* json's text of one orjson number token t[0:n] into out (room for n + 4); its length, or
+   -1 where this does not cover it. */
+static Py_ssize_t
+json_number(const char *t, Py_ssize_t n, char *out)
+{
+    Py_ssize_t i, sign = 0, bn, dot = -1, dots = 0;
+    const char *body = t;
+    int has_e = 0;
+    if (n > 0 && t[0] == '-') {
+        sign = 1;
+        body = t + 1;
+    }
+    bn = n - sign;
+    if (bn <= 0)
+        return -1;
+    for (i = 0; i < bn; i++) {
+        char c = body[i];
+        if (c >= '0' && c <= '9')
+            continue;
+        if (c == '.') {
+            dot = i;
+            dots++;
+        } else if (c == 'e') {
+            has_e = 1;
+        } else if (c != '-') {
+            return -1;
+        }
+    }
+    if (dots > 1)
+        return -1;
+    if (has_e) {
+        /* Only d.ddde-N with N a digit 1-9: insert the 0 repr writes. */
+        if (bn >= 4 && body[bn - 3] == 'e' && body[bn - 2] == '-' && body[bn - 1] >= '1'
+                && body[bn - 1] <= '9' && memchr(body, 'e', (size_t)(bn - 3)) == NULL) {
+            memcpy(out, t, (size_t)(n - 1));
+            out[n - 1] = '0';
+            out[n] = t[n - 1];
+            return n + 1;
+        }
+        return -1;
+    }
+    /* "0.0000" (with the one dot): only 0.0000d... (d nonzero) is rewritten, d.ddd e-05. */
+    if (dot >= 1 && body[dot - 1] == '0' && bn - dot >= 5
+            && memcmp(body + dot + 1, "0000", 4) == 0) {
+        Py_ssize_t k = 0, digits = bn - 6;
+        if (dot != 1 || digits < 1 || body[6] == '0')
+            return -1;
+        for (Py_ssize_t j = 6; j < bn; j++)
+            if (body[j] < '0' || body[j] > '9')
+                return -1;
+        if (sign)
+            out[k++] = '-';
+        out[k++] = body[6];
+        if (digits > 1) {
+            out[k++] = '.';
+            memcpy(out + k, body + 7, (size_t)(digits - 1));
+            k += digits - 1;
+        }
+        memcpy(out + k, "e-05", 4);
+        return k + 4;
+    }
+    memcpy(out, t, (size_t)n);
+    return n;
+}
+
+/* The writer: a cursor into the output, or a counter of its length (out == NULL). */
+typedef struct {
+    char *out;
+    Py_ssize_t n;
+} writer;
+
+static inline void
+put(writer *w, const char *s, Py_ssize_t n)
+{
+    if (w->out)
+        memcpy(w->out + w->n, s, (size_t)n);
+    w->n += n;
+}
+
+#define PUT(w, lit) put((w), (lit), (Py_ssize_t)(sizeof(lit) - 1))
+
+static inline void
+put_bytes(writer *w, PyObject *b)
+{
+    put(w, PyBytes_AS_STRING(b), PyBytes_GET_SIZE(b));
+}
+
+static inline void
+put_token(writer *w, const char *scratch, const token *tokens, Py_ssize_t i)
+{
+    put(w, scratch + tokens[i].at, tokens[i].n);
+}
+
+static void
+write_part(writer *w, const char *s, const token *tk, PyObject *name, PyObject *mode)
+{
+    /* {"angular_velocity":[0,1,2],"linear_velocity":[3,4,5],"mode":M,"name":N,
+        "position":[6,7,8],"xyzw":[9,10,11,12]} */
+    PUT(w, "{\"angular_velocity\":[");
+    put_token(w, s, tk, 0); PUT(w, ","); put_token(w, s, tk, 1); PUT(w, ",");
+    put_token(w, s, tk, 2);
+    PUT(w, "],\"linear_velocity\":[");
+    put_token(w, s, tk, 3); PUT(w, ","); put_token(w, s, tk, 4); PUT(w, ",");
+    put_token(w, s, tk, 5);
+    PUT(w, "],\"mode\":");
+    put_bytes(w, mode);
+    PUT(w, ",\"name\":");
+    put_bytes(w, name);
+    PUT(w, ",\"position\":[");
+    put_token(w, s, tk, 6); PUT(w, ","); put_token(w, s, tk, 7); PUT(w, ",");
+    put_token(w, s, tk, 8);
+    PUT(w, "],\"xyzw\":[");
+    put_token(w, s, tk, 9); PUT(w, ","); put_token(w, s, tk, 10); PUT(w, ",");
+    put_token(w, s, tk, 11); PUT(w, ","); put_token(w, s, tk, 12);
+    PUT(w, "]}");
+}
+
+static void
+write_transform(writer *w, const char *s, const token *tk, PyObject *name, PyObject *stamp)
+{
+    /* {"child_frame_id":N,"parent_frame_id":"world","rotation":{"w":12,"x":9,"y":10,
+        "z":11},"timestamp":STAMP,"translation":{"x":6,"y":7,"z":8}} */
+    PUT(w, "{\"child_frame_id\":");
+    put_bytes(w, name);
+    PUT(w, ",\"parent_frame_id\":\"world\",\"rotation\":{\"w\":");
+    put_token(w, s, tk, 12); PUT(w, ",\"x\":"); put_token(w, s, tk, 9);
+    PUT(w, ",\"y\":"); put_token(w, s, tk, 10); PUT(w, ",\"z\":"); put_token(w, s, tk, 11);
+    PUT(w, "},\"timestamp\":");
+    put_bytes(w, stamp);
+    PUT(w, ",\"translation\":{\"x\":");
+    put_token(w, s, tk, 6); PUT(w, ",\"y\":"); put_token(w, s, tk, 7);
+    PUT(w, ",\"z\":"); put_token(w, s, tk, 8);
+    PUT(w, "}}");
+}
+
+static void
+write_messages(writer *parts, writer *transforms, const char *scratch, const token *tokens,
+               PyObject *names, PyObject *modes, int with_base, PyObject *middle,
+               PyObject *end, PyObject *stamp)
+{
+    Py_ssize_t k = PyTuple_GET_SIZE(names), i;
+    PUT(parts, "{\"base\":");
+    if (with_base)
+        write_part(parts, scratch, tokens, PyTuple_GET_ITEM(names, 0),
+                   PyTuple_GET_ITEM(modes, 0));
+    else
+        PUT(parts, "null");
+    put_bytes(parts, middle);
+    for (i = with_base ? 1 : 0; i < k; i++) {
+        if (i > (with_base ? 1 : 0))
+            PUT(parts, ",");
+        write_part(parts, scratch, tokens + NUMBERS_PER_PART * i, PyTuple_GET_ITEM(names, i),
+                   PyTuple_GET_ITEM(modes, i));
+    }
+    put_bytes(parts, end);
+    PUT(transforms, "{\"transforms\":[");
+    for (i = 0; i < k; i++) {
+        if (i > 0)
+            PUT(transforms, ",");
+        write_transform(transforms, scratch, tokens + NUMBERS_PER_PART * i,
+                        PyTuple_GET_ITEM(names, i), stamp);
+    }
+    PUT(transforms, "]}");
+}
+
+static int
+all_bytes(PyObject *tuple)
+{
+    for (Py_ssize_t i = 0; i < PyTuple_GET_SIZE(tuple); i++)
+        if (!PyBytes_CheckExact(PyTuple_GET_ITEM(tuple, i)))
+            return 0;
+    return 1;
+}
+
+/* frame_messages(numbers, names, modes, with_base, middle, end, stamp)
+     -> (parts, transforms) | None
+
+   numbers: orjson's text of a list of 13 numbers a part shown (angular velocity, linear
+   velocity, position, rotation xyzw), the base's first where with_base; names and modes:
+   tuples of bytes, each part's quoted as json quotes it; middle: the /parts text between
+   the base and the first part's object, up to and with the "[" of "parts"; end: from the
+   "]" after the last part to the closing brace; stamp: the transforms' timestamp object. */
+static PyObject *
+frame_messages(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
+{
+    PyObject *numbers, *names, *modes, *middle, *end, *stamp, *result = Py_None;
+    Py_ssize_t k, count, n, i, start, expected;
+    const char *text;
+    char *scratch = NULL;
+    token *tokens = NULL;
+    int with_base;
+    if (nargs != 7) {
+        PyErr_SetString(PyExc_TypeError, "frame_messages takes 7 arguments");
+        return NULL;
+    }
+    numbers = args[0]; names = args[1]; modes = args[2];
+    middle = args[4]; end = args[5]; stamp = args[6];
+    with_base = PyObject_IsTrue(args[3]);
+    if (with_base < 0)
+        return NULL;
+    if (!PyBytes_CheckExact(numbers) || !PyTuple_CheckExact(names)
+            || !PyTuple_CheckExact(modes) || !PyBytes_CheckExact(middle)
+            || !PyBytes_CheckExact(end) || !PyBytes_CheckExact(stamp)) {
+        PyErr_SetString(PyExc_TypeError, "frame_messages: bytes and tuples of bytes expected");
+        return NULL;
+    }
+    k = PyTuple_GET_SIZE(names);
+    if (PyTuple_GET_SIZE(modes) != k || !all_bytes(names) || !all_bytes(modes)) {
+        PyErr_SetString(PyExc_TypeError, "frame_messages: names and modes: bytes, as many");
+        return NULL;
+    }
+    if (k == 0 || (with_base && k < 1))
+        Py_RETURN_NONE;
+    expected = NUMBERS_PER_PART * k;
+    text = PyBytes_AS_STRING(numbers);
+    n = PyBytes_GET_SIZE(numbers);
+    if (n < 2 || text[0] != '[' || text[n - 1] != ']')
+        Py_RETURN_NONE;
+    tokens = PyMem_Malloc(sizeof(token) * (size_t)expected);
+    /* Each token grows by at most 4 bytes ("0.0000d" -> "de-05" shrinks; "e-N" +1). */
+    scratch = PyMem_Malloc((size_t)(n + 4 * expected + 8));
+    if (tokens == NULL || scratch == NULL) {
+        PyMem_Free(tokens);
+        PyMem_Free(scratch);
+        return PyErr_NoMemory();
+    }
+    {
+        Py_ssize_t at = 0, len;
+        count = 0;
+        start = 1;
+        while (start <= n - 1) {
+            const char *comma = memchr(text + start, ',', (size_t)(n - 1 - start));
+            i = comma == NULL ? n - 1 : comma - text;  /* the token's end: "," or "]" */
+            if (count >= expected)
+                goto none;
+            len = json_number(text + start, i - start, scratch + at);
+            if (len < 0)
+                goto none;
+            tokens[count].at = at;
+            tokens[count].n = len;
+            at += len;
+            count++;
+            start = i + 1;
+        }
+        if (count != expected)
+            goto none;
+    }
+    {
+        writer pc = {NULL, 0}, tc = {NULL, 0};
+        PyObject *parts, *transforms;
+        write_messages(&pc, &tc, scratch, tokens, names, modes, with_base, middle, end, stamp);
+        parts = PyBytes_FromStringAndSize(NULL, pc.n);
+        transforms = PyBytes_FromStringAndSize(NULL, tc.n);
+        if (parts == NULL || transforms == NULL) {
+            Py_XDECREF(parts);
+            Py_XDECREF(transforms);
+            result = NULL;
+            goto done;
+        }
+        {
+            writer pw = {PyBytes_AS_STRING(parts), 0}, tw = {PyBytes_AS_STRING(transforms), 0};
+            write_messages(&pw, &tw, scratch, tokens, names, modes, with_base, middle, end,
+                           stamp);
+        }
+        result = PyTuple_Pack(2, parts, transforms);
+        Py_DECREF(parts);
+        Py_DECREF(transforms);
+        goto done;
+    }
+none:
+    result = Py_None;
+    Py_INCREF(result);
+done:
+    PyMem_Free(tokens);
+    PyMem_Free(scratch);
+    return result;
+}
+
+static PyMethodDef methods[] = {
+    {"frame_messages", (PyCFunction)(void (*)(void))frame_messages, METH_FASTCALL,
+     "A frame's /parts and /foxglove/transforms bytes from orjson's text of their numbers, "
+     "or None (see codec._frame_json_py)."},
+    {NULL, NULL, 0, NULL},
+};
+
+static struct PyModuleDef module = {
+    PyModuleDef_HEAD_INIT, "vade_replay._framejson",
+    "A frame's messages written around orjson's numbers (codec.FrameEncoder).", -1, methods,
+};
+
+PyMODINIT_FUNC
+PyInit__framejson(void)
+{
+    return PyModule_Create(&module);
+}
