@@ -11,10 +11,12 @@
 
    The notation: orjson writes a float as ``repr`` does (``json``'s text of it) except
      d.ddde-N   (a one-digit negative exponent)        repr: d.ddde-0N
+     d.ddde16   (a positive exponent without its sign)   repr: d.ddde+16
      0.0000ddd  (1e-5 <= |x| < 1e-4)                   repr: d.dde-05
-   and other exponents, which are left to the Python writer (None here). Tokens are taken
-   only as [-0-9.e]: "null" (orjson's NaN and infinity, which json refuses), true, false
-   and anything else give None. */
+   A negative exponent of two or three digits, and a signed positive one (as orjson 3.13
+   writes it), are written alike. Tokens are taken only as
+   [-+0-9.e] with one dot: "null" (orjson's NaN and infinity, which json refuses), true,
+   false, exponents of other forms and anything else give None, for the Python writer. */
 
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -51,19 +53,56 @@ json_number(const char *t, Py_ssize_t n, char *out)
             dots++;
         } else if (c == 'e') {
             has_e = 1;
-        } else if (c != '-') {
+        } else if (c != '-' && c != '+') {
             return -1;
         }
     }
     if (dots > 1)
         return -1;
     if (has_e) {
-        /* Only d.ddde-N with N a digit 1-9: insert the 0 repr writes. */
-        if (bn >= 4 && body[bn - 3] == 'e' && body[bn - 2] == '-' && body[bn - 1] >= '1'
-                && body[bn - 1] <= '9' && memchr(body, 'e', (size_t)(bn - 3)) == NULL) {
-            memcpy(out, t, (size_t)(n - 1));
-            out[n - 1] = '0';
-            out[n] = t[n - 1];
+        const char *e = memchr(body, 'e', (size_t)bn);
+        Py_ssize_t at = e - body, digits = bn - at - 1;  /* after the e */
+        if (at < 1 || memchr(e + 1, 'e', (size_t)digits) != NULL || digits < 1)
+            return -1;
+        if (e[1] == '-') {
+            digits--;
+            for (i = at + 2; i < bn; i++)
+                if (body[i] < '0' || body[i] > '9')
+                    return -1;
+            if (digits == 1 && e[2] >= '1') {
+                /* d.ddde-N: insert the 0 repr writes. */
+                memcpy(out, t, (size_t)(n - 1));
+                out[n - 1] = '0';
+                out[n] = t[n - 1];
+                return n + 1;
+            }
+            if ((digits == 2 || digits == 3) && e[2] >= '1') {
+                memcpy(out, t, (size_t)n);  /* e-NN, e-NNN: repr's own */
+                return n;
+            }
+            return -1;
+        }
+        if (e[1] == '+') {
+            /* d.ddde+16, as orjson 3.13 writes it: repr's own. */
+            digits--;
+            for (i = at + 2; i < bn; i++)
+                if (body[i] < '0' || body[i] > '9')
+                    return -1;
+            if ((digits == 2 || digits == 3) && e[2] >= '1') {
+                memcpy(out, t, (size_t)n);
+                return n;
+            }
+            return -1;
+        }
+        for (i = at + 1; i < bn; i++)
+            if (body[i] < '0' || body[i] > '9')
+                return -1;
+        if ((digits == 2 || digits == 3) && e[1] >= '1') {
+            /* d.ddde16: repr writes e+16. */
+            Py_ssize_t k = sign + at + 1;
+            memcpy(out, t, (size_t)k);
+            out[k] = '+';
+            memcpy(out + k + 1, t + k, (size_t)(n - k));
             return n + 1;
         }
         return -1;

@@ -337,27 +337,36 @@ def _quoted_bytes(text: str) -> bytes:
     return quoted
 
 
-_NOT_NUMBER_BYTES: Final = b"0123456789.-e"
+_NOT_NUMBER_BYTES: Final = b"0123456789.-+e"
 
 
 def _json_number_py(token: bytes) -> bytes | None:
-    """``json``'s text of a number from orjson's ``token``, or None where the two notations
-    are not the ones handled: ``d.ddde-N`` (one-digit negative exponent: repr writes
-    ``e-0N``) and ``0.0000ddd`` (1e-5 <= |x| < 1e-4: repr writes ``d.dde-05``); any other
-    exponent, anything but [-0-9.e] (orjson's ``null``, ``true``), two dots. Else the token
-    as it is
-    (``json_numbers``: the digits are the same shortest ones). ``_framejson.c``'s
+    """``json``'s text of a number from orjson's ``token`` (the digits are the same
+    shortest ones: ``json_numbers``), or None. Rewritten: ``d.ddde-N`` (a one-digit
+    negative exponent: repr writes ``e-0N``), ``d.ddde16`` (a positive one without its
+    sign: ``e+16``), ``0.0000ddd`` (1e-5 <= |x| < 1e-4: ``d.dde-05``). As it is: a
+    negative exponent of two or three digits, a signed positive one (orjson 3.13's
+    ``1e+16``), and fixed notation. None: exponents of other forms, anything but
+    [-+0-9.e] (orjson's ``null``, ``true``), two dots. ``_framejson.c``'s
     ``json_number``, the same cases."""
     negative = token.startswith(b"-")
     body = token[1:] if negative else token
     if not body or body.translate(None, _NOT_NUMBER_BYTES) or body.count(b".") > 1:
         return None
-    n = len(body)
     if b"e" in body:
-        if n >= 4 and body[n - 3:n - 1] == b"e-" and b"1" <= body[n - 1:] <= b"9" \
-                and b"e" not in body[:n - 3]:
-            return token[:-1] + b"0" + token[-1:]
-        return None
+        mantissa, _, exponent = body.partition(b"e")
+        if not mantissa or b"e" in exponent:
+            return None
+        if exponent.startswith(b"-"):
+            digits = exponent[1:]
+            if not digits.isdigit() or digits.startswith(b"0") or len(digits) > 3:
+                return None
+            return token[:-1] + b"0" + token[-1:] if len(digits) == 1 else token
+        signed = exponent.startswith(b"+")
+        digits = exponent[1:] if signed else exponent
+        if not digits.isdigit() or digits.startswith(b"0") or not 2 <= len(digits) <= 3:
+            return None
+        return token if signed else token[:len(token) - len(digits)] + b"+" + digits
     at = body.find(b"0.0000")
     if at < 0:
         return token
