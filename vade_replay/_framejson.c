@@ -29,6 +29,15 @@ typedef struct {
     Py_ssize_t n;   /* length */
 } token;
 
+static int
+all_digits(const char *p, Py_ssize_t n)
+{
+    for (Py_ssize_t i = 0; i < n; i++)
+        if (p[i] < '0' || p[i] > '9')
+            return 0;
+    return 1;
+}
+
 /* json's text of one orjson number token t[0:n] into out (room for n + 4); its length, or
    -1 where this does not cover it. */
 static Py_ssize_t
@@ -66,9 +75,8 @@ json_number(const char *t, Py_ssize_t n, char *out)
             return -1;
         if (e[1] == '-') {
             digits--;
-            for (i = at + 2; i < bn; i++)
-                if (body[i] < '0' || body[i] > '9')
-                    return -1;
+            if (!all_digits(e + 2, digits))
+                return -1;
             if (digits == 1 && e[2] >= '1') {
                 /* d.ddde-N: insert the 0 repr writes. */
                 memcpy(out, t, (size_t)(n - 1));
@@ -85,18 +93,16 @@ json_number(const char *t, Py_ssize_t n, char *out)
         if (e[1] == '+') {
             /* d.ddde+16, as orjson 3.13 writes it: repr's own. */
             digits--;
-            for (i = at + 2; i < bn; i++)
-                if (body[i] < '0' || body[i] > '9')
-                    return -1;
+            if (!all_digits(e + 2, digits))
+                return -1;
             if ((digits == 2 || digits == 3) && e[2] >= '1') {
                 memcpy(out, t, (size_t)n);
                 return n;
             }
             return -1;
         }
-        for (i = at + 1; i < bn; i++)
-            if (body[i] < '0' || body[i] > '9')
-                return -1;
+        if (!all_digits(e + 1, digits))
+            return -1;
         if ((digits == 2 || digits == 3) && e[1] >= '1') {
             /* d.ddde16: repr writes e+16. */
             Py_ssize_t k = sign + at + 1;
@@ -111,11 +117,8 @@ json_number(const char *t, Py_ssize_t n, char *out)
     if (dot >= 1 && body[dot - 1] == '0' && bn - dot >= 5
             && memcmp(body + dot + 1, "0000", 4) == 0) {
         Py_ssize_t k = 0, digits = bn - 6;
-        if (dot != 1 || digits < 1 || body[6] == '0')
+        if (dot != 1 || digits < 1 || body[6] == '0' || !all_digits(body + 6, digits))
             return -1;
-        for (Py_ssize_t j = 6; j < bn; j++)
-            if (body[j] < '0' || body[j] > '9')
-                return -1;
         if (sign)
             out[k++] = '-';
         out[k++] = body[6];
