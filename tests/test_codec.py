@@ -152,6 +152,10 @@ def test_the_frame_writers_write_json_s_numbers():
     values += [float(v) for v in bits.view(np.float64) if np.isfinite(v)]
     values += [1e-5 * (1.0 + i / 500.0) for i in range(4500)]  # 0.0000ddd
     values += [1e-9 * (1.0 + i / 500.0) for i in range(4500)]  # d.ddde-N
+    # An integer part ending in 0 before 0.0000 (written as orjson writes them; a review
+    # found both writers declining them, so those frames went the slower way).
+    values += [10.00001, 20.000012345, 30.00009999, 100000.00001, 1000.0000123]
+    values += [float(f"{m}0.0000{d}") for m in range(1, 100) for d in (1, 23, 9876543)]
     values = [v for x in values if math.isfinite(x) for v in (x, -x)] + [0.0, -0.0]
     writers = _writers()
     written = 0
@@ -176,7 +180,8 @@ def test_the_frame_writers_write_json_s_numbers():
 @pytest.mark.parametrize("token, text", [
     (b"1e16", b"1e+16"), (b"-2.5e123", b"-2.5e+123"), (b"1e+16", b"1e+16"),
     (b"1.5e-7", b"1.5e-07"), (b"-0.00001", b"-1e-05"), (b"0.0000123", b"1.23e-05"),
-    (b"2e-17", b"2e-17"), (b"-0.0", b"-0.0"), (b"12", b"12")])
+    (b"2e-17", b"2e-17"), (b"-0.0", b"-0.0"), (b"12", b"12"), (b"10.00001", b"10.00001"),
+    (b"-100000.00001", b"-100000.00001")])
 def test_the_frame_writers_put_each_notation_in_repr_s(token, text):
     """Each form either orjson writes (3.10 wrote ``1e16``, 3.13 writes ``1e+16``) in
     ``repr``'s notation: the last number of a part is its rotation's w."""

@@ -113,11 +113,19 @@ json_number(const char *t, Py_ssize_t n, char *out)
         }
         return -1;
     }
-    /* "0.0000" (with the one dot): only 0.0000d... (d nonzero) is rewritten, d.ddd e-05. */
+    /* "0.0000" (with the one dot): only 0.0000d... (d nonzero) is rewritten, d.ddd e-05;
+       an integer part ending in 0 (10.00001) is json's notation too, a leading zero
+       (00.00001) no number orjson writes. */
     if (dot >= 1 && body[dot - 1] == '0' && bn - dot >= 5
             && memcmp(body + dot + 1, "0000", 4) == 0) {
         Py_ssize_t k = 0, digits = bn - 6;
-        if (dot != 1 || digits < 1 || body[6] == '0' || !all_digits(body + 6, digits))
+        if (dot != 1) {
+            if (body[0] == '0')
+                return -1;
+            memcpy(out, t, (size_t)n);
+            return n;
+        }
+        if (digits < 1 || body[6] == '0' || !all_digits(body + 6, digits))
             return -1;
         if (sign)
             out[k++] = '-';

@@ -370,8 +370,12 @@ def _json_number_py(token: bytes) -> bytes | None:
     at = body.find(b"0.0000")
     if at < 0:
         return token
+    if at > 0:
+        # An integer part ending in 0 (``10.00001``): json's notation too. A leading zero
+        # (``00.00001``) is no number orjson writes.
+        return None if body.startswith(b"0") else token
     digits = body[6:]
-    if at != 0 or not digits or digits.startswith(b"0") or not digits.isdigit():
+    if not digits or digits.startswith(b"0") or not digits.isdigit():
         return None
     rest = b"." + digits[1:] if len(digits) > 1 else b""
     return (b"-" if negative else b"") + digits[:1] + rest + b"e-05"
