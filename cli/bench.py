@@ -139,10 +139,17 @@ def _instructions(args, out: Path, command: str) -> None:
             print(f"not in {args.against}, so without ratios: {', '.join(missing)}\n")
         rows = instructions.against(rows, before)
     print(f"machine: {replay_bench.machine()}\n")
-    _print(args, [{k: v for k, v in row.items() if k != "table"} for row in rows],
+    _print(args, [{k: v for k, v in row.items() if k != "table" and "_objects_" not in k}
+                  for row in rows],
            title="Instructions a frame by stage, counted by valgrind's callgrind (setup: "
                  "instructions in all, once a file, not a frame; check_and_loop: a replay's "
                  "check with its loop and summary)")
+    made = [{"session": row["session"], "frames": row["frames"],
+             **{k: v for k, v in row.items() if "_objects_" in k}}
+            for row in rows if "replay_objects_per_frame" in row]
+    if made:
+        _print(args, made, title="Python objects made a frame by stage (calls of "
+                                 "_Py_NewReference; the same stages)")
     resting = instructions.resting_ratio(rows)
     if resting is not None:
         def x(value: float | None) -> str:

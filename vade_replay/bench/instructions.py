@@ -25,8 +25,10 @@ nothing else here calls it). Stages, each from the file on disk:
 Reported: ``setup`` as ``open + setup`` (instructions in all, once a file), and per frame the
 floor, the frames read, the step (``stepped - open - setup - frames``), the check with the
 replay's own loop and summary (``replay - stepped``) and the replay, and the replay against
-the floor with and without its setup. A probe first checks that callgrind sees the marker
-in this Python (``probe``).
+the floor with and without its setup; and the Python objects each stage makes a frame (the
+calls of ``_Py_NewReference`` in each dump, ``dump_calls``), which on a core with a small
+cache the time follows more than the instructions. A probe first checks that callgrind sees
+the marker in this Python (``probe``).
 """
 
 from __future__ import annotations
@@ -109,16 +111,19 @@ def valgrind() -> str:
     return found
 
 
-def dump_totals(prefix: Path) -> list[int]:
-    """The instruction totals of callgrind's dumps ``prefix.1``, ``prefix.2``, ... in order
-    (each the count since the dump before), then of ``prefix`` itself (what ran after the
-    last dump)."""
+def _dump_files(prefix: Path) -> list[Path]:
+    """Callgrind's dumps ``prefix.1``, ``prefix.2``, ... in order (each what ran since the
+    dump before), then ``prefix`` itself (what ran after the last dump)."""
     numbered = sorted((int(p.name.rsplit(".", 1)[1]), p)
                       for p in prefix.parent.glob(prefix.name + ".*")
                       if p.name.rsplit(".", 1)[1].isdigit())
-    files = [p for _, p in numbered] + ([prefix] if prefix.exists() else [])
+    return [p for _, p in numbered] + ([prefix] if prefix.exists() else [])
+
+
+def dump_totals(prefix: Path) -> list[int]:
+    """The instruction totals of callgrind's dumps, in the order written (``_dump_files``)."""
     totals = []
-    for path in files:
+    for path in _dump_files(prefix):
         match = re.search(r"^(?:summary|totals):\s*(\d+)", path.read_text(), re.MULTILINE)
         if match is None:
             raise RuntimeError(f"{path}: no instruction total in callgrind's dump")
@@ -126,11 +131,123 @@ def dump_totals(prefix: Path) -> list[int]:
     return totals
 
 
-def rows_from(names: list[str], frames: list[int], totals: list[int]) -> list[dict]:
+# Every Python object made passes through it (CPython 3.11-3.13: ``PyObject_Init``, the
+# float and tuple free lists, orjson's objects alike): its calls count the objects a stage
+# makes. On a core with a small cache a frame's time follows them more than its instructions
+# (BENCHMARKS.md, the twelfth session's runs).
+_NEW_OBJECT = "_Py_NewReference"
+_NAMED = re.compile(r"^c?fn=\((\d+)\)(?: (.*))?$")
+
+
+def call_arcs(files: list[Path]):
+    """Each call arc of callgrind's dumps ``files``, in the order written: ``(k, caller,
+    callee, calls)``, ``k`` the dump's index. Callgrind names a function once, ``fn=(7)
+    name``, and ``fn=(7)`` after that, in that dump or a later one: the names are followed
+    from the first dump on, so ``files`` start with a run's first."""
+    names: dict[str, str] = {}
+
+    def name(line: str) -> str:
+        named = _NAMED.match(line)
+        if named is None:
+            return line.partition("=")[2]  # (--compress-strings=no)
+        if named.group(2) is not None:
+            names[named.group(1)] = named.group(2)
+        return names.get(named.group(1), line)
+
+    for k, path in enumerate(files):
+        caller = callee = ""
+        with open(path, encoding="utf-8", errors="replace") as f:
+            for line in f:
+                if line.startswith("cfn="):
+                    callee = name(line.rstrip("\n"))
+                elif line.startswith("fn="):
+                    caller, callee = name(line.rstrip("\n")), ""
+                elif line.startswith("calls="):
+                    yield k, caller, callee, int(line[6:].split()[0])
+
+
+def dump_calls(prefix: Path, function: str = _NEW_OBJECT) -> list[int]:
+    """How many times each dump (``_dump_files``' order) called ``function``, from anywhere."""
+    files = _dump_files(prefix)
+    out = [0] * len(files)
+    for k, _, callee, calls in call_arcs(files):
+        if callee == function:
+            out[k] += calls
+    return out
+
+
+def _made_by(name: str) -> bool:
+    """Whether objects made in ``name`` are counted as its own: this package's compiled
+    code, and the interpreter's loop (Python run as Python); what else makes them (an
+    allocator, a C library's internals) passes them on to its callers."""
+    return name.startswith(("CPyDef_", "CPyPy_", "_PyEval_EvalFrameDefault"))
+
+
+def objects_by_function(arcs, dump: int, *, levels: int = 6) -> dict[str, int]:
+    """Who made the objects of dump ``dump`` (``call_arcs``' arcs of the run): the calls of
+    ``_NEW_OBJECT``, each passed up from its caller to theirs, in proportion to their calls
+    of it, until it reaches compiled code of this package or the interpreter's loop
+    (``_made_by``), a function with no callers, or ``levels`` steps: the floats that
+    ``onbase.turn`` boxes are its, not ``PyFloat_FromDouble``'s."""
+    calls_of: dict[str, dict[str, int]] = {}
+    pending: dict[str, float] = {}
+    for k, caller, callee, calls in arcs:
+        if k != dump:
+            continue
+        if callee == _NEW_OBJECT:
+            pending[caller] = pending.get(caller, 0) + calls
+        calls_of.setdefault(callee, {})
+        calls_of[callee][caller] = calls_of[callee].get(caller, 0) + calls
+    out: dict[str, float] = {}
+    for _ in range(levels):
+        passed: dict[str, float] = {}
+        for maker, n in pending.items():
+            callers = calls_of.get(maker, {})
+            whole = sum(callers.values())
+            if _made_by(maker) or whole == 0:
+                out[maker] = out.get(maker, 0) + n
+                continue
+            for caller, calls in callers.items():
+                passed[caller] = passed.get(caller, 0) + n * calls / whole
+        pending = passed
+    for maker, n in pending.items():
+        out[maker] = out.get(maker, 0) + n
+    return {name: round(n) for name, n in out.items()}
+
+
+_CENSUS = """
+import json, sys, zlib
+from vade_replay.recording import Recording
+from vade_replay.replay import replay
+summary = replay(Recording(sys.argv[1]))  # warm: imports and first-use caches
+zlib.adler32(b"")
+replay(Recording(sys.argv[1]))
+zlib.adler32(b"")
+print(json.dumps(summary.frames))
+"""
+
+
+def census(path: Path) -> tuple[int, dict[str, int]]:
+    """A replay of ``path`` under callgrind, after one to warm up: its frames, and the
+    objects it made by function (``objects_by_function``). About 30 s for a 20 s session."""
+    with tempfile.TemporaryDirectory(prefix="vade-census-") as tmp:
+        prefix = Path(tmp) / "callgrind.out"
+        out = _run_callgrind(_CENSUS, [str(path)], prefix)
+        files = _dump_files(prefix)
+        if len(files) != 3:
+            raise ConfigError(f"callgrind wrote {len(files)} dumps where 3 were expected "
+                              f"(cannot it see {_MARKER}?)", file=str(path))
+        return json.loads(out.strip().splitlines()[-1]), objects_by_function(call_arcs(files), 1)
+
+
+def rows_from(names: list[str], frames: list[int], totals: list[int],
+              objects: list[int] | None = None) -> list[dict]:
     """The table's rows from the dumps' totals: the first is the warm-up, then one for each
-    stage of each session in order (``STAGES``), then what ran after the last marker."""
+    stage of each session in order (``STAGES``), then what ran after the last marker. With
+    ``objects``, the objects each dump made (``dump_calls``), the same stages' objects a
+    frame too (none where it made none: a Python that inlines ``_NEW_OBJECT``)."""
     need = 2 + len(STAGES) * len(names)
-    if len(totals) != need:
+    if len(totals) != need or objects is not None and len(objects) != need:
         raise ConfigError(
             f"callgrind wrote {len(totals)} dumps where {need} were expected: something "
             f"else called zlib.adler32, or valgrind's options (VALGRIND_OPTS, .valgrindrc) "
@@ -151,39 +268,60 @@ def rows_from(names: list[str], frames: list[int], totals: list[int]) -> list[di
             "replay_per_frame": round(stage["replay"] / n),
             "replay_over_floor": stage["replay"] / stage["floor"],
             "after_setup_over_floor": (stage["replay"] - setup) / stage["floor"]})
+        made = dict(zip(STAGES, objects[1 + k * len(STAGES):1 + (k + 1) * len(STAGES)])) \
+            if objects is not None and any(objects) else None
+        if made is not None:
+            made_setup = made["open"] + made["setup"]
+            rows[-1].update({
+                "floor_objects_per_frame": round(made["floor"] / n, 1),
+                "frames_read_objects_per_frame": round(made["frames"] / n, 1),
+                "step_objects_per_frame": round(
+                    (made["stepped"] - made_setup - made["frames"]) / n, 1),
+                "check_and_loop_objects_per_frame": round(
+                    (made["replay"] - made["stepped"]) / n, 1),
+                "replay_objects_per_frame": round(made["replay"] / n, 1),
+                "replay_objects_over_floor": made["replay"] / made["floor"]
+                if made["floor"] else None})
     return rows
 
 
-def _callgrind(script: str, args: list[str]) -> tuple[str, list[int]]:
-    """Run ``python -c script args`` under callgrind with the stages' marker; its standard
-    output and the dumps' totals. A failure is one line naming what failed."""
-    tool = valgrind()
+def _run_callgrind(script: str, args: list[str], prefix: Path) -> str:
+    """Run ``python -c script args`` under callgrind, dumping to ``prefix`` at each of the
+    stages' markers; its standard output. A failure is one line naming what failed."""
     env = dict(os.environ, PYTHONHASHSEED="0",
                # (A BLAS thread spinning while it waits for work would be counted too.)
                OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
+    done = subprocess.run(
+        [valgrind(), "--tool=callgrind", f"--callgrind-out-file={prefix}",
+         f"--dump-before={_MARKER}", sys.executable, "-c", script, *args],
+        capture_output=True, text=True, env=env)
+    if done.returncode != 0:
+        lines = (done.stderr or done.stdout).strip().splitlines()
+        last = next((ln for ln in reversed(lines) if not ln.startswith("==")),
+                    lines[-1] if lines else "")
+        raise ConfigError(f"the count under callgrind failed (exit {done.returncode}): "
+                          f"{last.strip()}", field="--instructions")
+    return done.stdout
+
+
+def _callgrind(script: str, args: list[str]) -> tuple[str, list[int], list[int]]:
+    """``_run_callgrind``'s standard output, the dumps' totals and the objects each dump
+    made (``dump_calls``)."""
     with tempfile.TemporaryDirectory(prefix="vade-bench-cg-") as tmp:
         prefix = Path(tmp) / "callgrind.out"
-        done = subprocess.run(
-            [tool, "--tool=callgrind", f"--callgrind-out-file={prefix}",
-             f"--dump-before={_MARKER}", sys.executable, "-c", script, *args],
-            capture_output=True, text=True, env=env)
-        if done.returncode != 0:
-            lines = (done.stderr or done.stdout).strip().splitlines()
-            last = next((ln for ln in reversed(lines) if not ln.startswith("==")),
-                        lines[-1] if lines else "")
-            raise ConfigError(f"the count under callgrind failed (exit {done.returncode}): "
-                              f"{last.strip()}", field="--instructions")
+        out = _run_callgrind(script, args, prefix)
         try:
             totals = dump_totals(prefix)
         except RuntimeError as exc:
             raise ConfigError(str(exc), field="--instructions") from None
-    return done.stdout, totals
+        objects = dump_calls(prefix)
+    return out, totals, objects
 
 
 def probe() -> None:
     """That callgrind sees the marker in this Python: two marker calls must make two dumps
     (an interpreter stripped of its symbols, as some distributions ship, makes none)."""
-    _, totals = _callgrind("import zlib; zlib.adler32(b''); zlib.adler32(b'')", [])
+    _, totals, _ = _callgrind("import zlib; zlib.adler32(b''); zlib.adler32(b'')", [])
     if len(totals) != 3:
         raise ConfigError(
             f"callgrind cannot see {_MARKER} in {sys.executable} (an interpreter stripped of "
@@ -196,9 +334,9 @@ def count(paths: list[Path], log=None) -> list[dict]:
     instruction is run on valgrind's simulated CPU, ~50x slower)."""
     log = log or (lambda text: None)
     log(f"instructions: {len(paths)} recordings under callgrind")
-    out, totals = _callgrind(_SCRIPT, [str(p) for p in paths])
+    out, totals, objects = _callgrind(_SCRIPT, [str(p) for p in paths])
     frames = json.loads(out.strip().splitlines()[-1])
-    return rows_from([p.stem for p in paths], frames, totals)
+    return rows_from([p.stem for p in paths], frames, totals, objects)
 
 
 def run(short: bool, log=None) -> list[dict]:
