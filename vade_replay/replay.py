@@ -15,7 +15,9 @@ import json
 import math
 import operator
 import re
+import signal
 import sys
+import threading
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable, Iterable, Iterator, TypeVar
@@ -89,6 +91,43 @@ def _stepped(items: Iterator[T], advance: Stepper,
             raise stopped
         if len(batch) < _BATCH_FRAMES:
             return
+
+
+class FrameBoundaryInterrupts:
+    """Ctrl-C (SIGINT) while a recording is written, held off to the end of the frame being
+    written: ``check`` raises ``KeyboardInterrupt`` there, so the file is closed after a
+    whole frame and its partial file replays. Raised at once wherever it came, the frame
+    being written was cut part way (a tracker message without its /parts, or a message
+    record half in its chunk): the partial file then diverged at its last frame, or could
+    not be read, and its count of frames was one off (a user's trial). A second Ctrl-C
+    before the frame ends is raised at once. Only in the main thread, and only where
+    SIGINT has Python's own handler (an embedding program's is left alone)."""
+
+    def __init__(self) -> None:
+        self.pending = False
+        self._previous = None
+
+    def __enter__(self) -> "FrameBoundaryInterrupts":
+        if threading.current_thread() is threading.main_thread() \
+                and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            self._previous = signal.signal(signal.SIGINT, self._held)
+        return self
+
+    def _held(self, signum, frame) -> None:
+        if self.pending:
+            raise KeyboardInterrupt  # asked twice: at once
+        self.pending = True
+
+    def check(self) -> None:
+        """At the end of a frame: the interrupt held off, if one came."""
+        if self.pending:
+            self.pending = False
+            raise KeyboardInterrupt
+
+    def __exit__(self, *exc) -> None:
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+            self._previous = None
 
 
 @dataclass
@@ -1035,24 +1074,26 @@ def record(session: Session, out: str | Path, *,
     writer = RecordingWriter(partial, session, scene)
     writer.warnings = summary.warnings
     try:
-        # (The tracker stream is opened inside: a CSV log may fail as it is read.)
-        inputs = _watched(session.tracker_frames(), watch)
-        advance = Stepper(scene, collision)
-        # A batch at a time (``_stepped``): what stops the run part way is raised after the
-        # frames before it are written.
-        for _, stepped in _stepped(inputs, advance):
-            for record_ in stepped:
-                frame = record_.frame
-                if first_time is None:
-                    first_time = record_.time_ns
-                writer.write_frame(record_)
-                summary.count(record_, first_time)
-                if record_.events:
-                    landed(summary.release_misses, open_misses, record_)
-                    summary.release_misses += release_misses(scene, record_, first_time)
-                    _opened(summary.release_misses, open_misses, record_)
-                if on_frame:
-                    on_frame(record_)
+        with FrameBoundaryInterrupts() as interrupts:
+            # (The tracker stream is opened inside: a CSV log may fail as it is read.)
+            inputs = _watched(session.tracker_frames(), watch)
+            advance = Stepper(scene, collision)
+            # A batch at a time (``_stepped``): what stops the run part way is raised after
+            # the frames before it are written.
+            for _, stepped in _stepped(inputs, advance):
+                for record_ in stepped:
+                    frame = record_.frame
+                    if first_time is None:
+                        first_time = record_.time_ns
+                    writer.write_frame(record_)
+                    summary.count(record_, first_time)
+                    if record_.events:
+                        landed(summary.release_misses, open_misses, record_)
+                        summary.release_misses += release_misses(scene, record_, first_time)
+                        _opened(summary.release_misses, open_misses, record_)
+                    if on_frame:
+                        on_frame(record_)
+                    interrupts.check()
     except VadeError as exc:
         if writer.frames and exc.frame is None and exc.field is None and frame is not None:
             exc.frame = frame + 1  # the frame being made when it failed
@@ -1912,6 +1953,8 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     beyond: str | None = None  # (with a tolerance: the first frame past it, and why)
     if applied:
         summary.recorded_analysis = SessionAnalysis()
+    # (Writing a recording, a Ctrl-C is held off to the end of its frame.)
+    interrupts = FrameBoundaryInterrupts().__enter__() if writer is not None else None
     try:
         try:
             # No generators between the reader and the check, and a ReplayFrame only for an
@@ -1975,6 +2018,8 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
                         writer.write_frame(replayed, derived)
                     if on_frame:
                         on_frame(ReplayFrame(recorded, replayed, derived, divergence))
+                    if interrupts is not None:
+                        interrupts.check()
         except RecordingError as exc:
             if exc.file is None:
                 exc.file = str(recording.path)
@@ -1992,6 +2037,9 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
             if isinstance(exc, KeyboardInterrupt) and writer.frames and partial is not None:
                 exc.add_note(_kept(writer.frames, partial))
         raise
+    finally:
+        if interrupts is not None:
+            interrupts.__exit__(None, None, None)
     if writer and partial is not None:
         if summary.frames == 0:
             if target is not None:
