@@ -156,7 +156,7 @@ def _main(args, overrides: dict[str, str]) -> int:
     try:
         for option, path in _table_options(args):
             if path != STDOUT:
-                ensure_writable(path)
+                ensure_writable(path, field=option)
             outputs[option] = TableFile(path, option)
         if len(args.recordings) > 1:
             code = _many(args, overrides, outputs)
@@ -262,8 +262,8 @@ def _refuse_replacing_other(path: str, option: str) -> None:
     if not (recording or session) and (start is None or head.startswith(start)):
         return
     what = "a recording" if recording else "a JSON file (a session?)" if session \
-        else "a file that is not a rerun review"
-    kind = "review" if option == "--rerun" else "table"
+        else "other data"
+    kind = "rerun review" if option == "--rerun" else "table"
     raise ConfigError(f"{path} holds {what}, not a {kind}; pass --force to replace it, or "
                       "choose another file", field=option)
 
@@ -619,7 +619,7 @@ def _physics_note(changes: dict, path: str, *, what_if: bool = False) -> str:
 def _one(args, path: str, overrides: dict[str, str], outputs: dict[str, TableFile]) -> int:
     recording = Recording(path)
     if args.rerun:
-        ensure_writable(args.rerun)
+        ensure_writable(args.rerun, field="--rerun")
     progress = Progress("replaying", recording.frame_count)
     tables = FrameTables(path, _frame_outputs(outputs), header=True)
 

@@ -931,3 +931,58 @@ def test_a_file_cut_before_its_first_frame_says_how_little_it_holds(tmp_path):
     assert result.returncode == 2
     assert result.stderr == (f"error: {path}: cut short before its first frame: no complete "
                              "frame to replay (the file holds only 10 bytes)\n")
+
+
+def _flip_inside(path: Path, marker: bytes, offset: int = 0) -> None:
+    data = bytearray(path.read_bytes())
+    at = data.index(marker) + offset
+    data[at] ^= 0x01
+    path.write_bytes(bytes(data))
+
+
+def test_a_damaged_stored_session_is_an_unusable_file_not_a_divergence(tmp_path):
+    """One byte of the session stored in a recording changed (a friction 0.4 made 0.5 by a
+    bad disk or a careless edit): the replay re-runs what is stored, so it was reported as
+    the session diverging at frame 112 (a user's trial). The attachment's CRC-32 says it
+    is damaged: exit 2, one line naming the file and what is damaged."""
+    path = tmp_path / "wall.mcap"
+    path.write_bytes((RECORDINGS / "plane_block_wall.mcap").read_bytes())
+    _flip_inside(path, b'"static": 0.4', offset=12)
+    result = run_cli("vade-replay", str(path))
+    assert result.returncode == 2 and result.stdout == ""
+    assert result.stderr.count("\n") == 1 and "Traceback" not in result.stderr
+    assert str(path) in result.stderr and "the session stored in it is damaged" in result.stderr
+
+
+def test_a_damaged_stored_mesh_file_is_named(tmp_path):
+    import trimesh
+    mesh = trimesh.creation.box(extents=[0.04, 0.04, 0.08]).export(file_type="obj")
+    (tmp_path / "peg.obj").write_text(mesh)
+    doc = _doc()
+    doc["parts"][0]["shape"] = {"type": "mesh", "file": "peg.obj"}
+    (tmp_path / "s.json").write_text(json.dumps(doc))
+    out = tmp_path / "s.mcap"
+    assert run_cli("vade-record", str(tmp_path / "s.json"), "-o", str(out)).returncode == 0
+    assert run_cli("vade-replay", str(out)).returncode == 0
+    _flip_inside(out, b"\nv ", offset=4)  # a vertex's first digit
+    result = run_cli("vade-replay", str(out))
+    assert result.returncode == 2 and "the file 'peg.obj' stored in it is damaged" \
+        in result.stderr, result.stderr
+
+
+def test_a_review_s_place_holding_other_data_is_refused_in_plain_words(tmp_path):
+    """(A user's trial read "x.rrd holds a file that is not a rerun review, not a review".)"""
+    notes = tmp_path / "x.rrd"
+    notes.write_text("my notes on this session\n")
+    result = run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"), "--rerun",
+                     str(notes))
+    _assert_clean_error(result, f"{notes} holds other data, not a rerun review", "--force")
+    assert notes.read_text() == "my notes on this session\n"
+
+
+@pytest.mark.parametrize("option", ["--rerun", "--events", "--csv"])
+def test_a_folder_given_for_an_output_names_the_option(tmp_path, option):
+    """(A user's trial: ``--rerun out`` said "out: is a folder" without the option.)"""
+    result = run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"), option,
+                     str(tmp_path))
+    _assert_clean_error(result, f"{tmp_path}: {option}: is a folder; give a file name")

@@ -169,10 +169,12 @@ def test_chunks_are_read_as_the_mcap_library_reads_them(golden):
 
 def _library_records(stream):
     """The reference for ``recording._records``: the library's reader, filtered."""
-    from mcap.records import Channel, Chunk, DataEnd, Footer, Message, Metadata
+    from mcap.records import (Attachment, Channel, Chunk, DataEnd, Footer, Header, Message,
+                              Metadata)
     from mcap.stream_reader import StreamReader
     for item in StreamReader(stream, emit_chunks=True).records:
-        if isinstance(item, (Chunk, Channel, Message, Metadata, DataEnd, Footer)):
+        if isinstance(item, (Header, Attachment, Chunk, Channel, Message, Metadata, DataEnd,
+                             Footer)):
             yield item
 
 
@@ -235,12 +237,42 @@ def test_a_file_damaged_at_any_byte_reads_as_it_did_through_the_library(tmp_path
     ours = rec_module._records
     outcome = _outcome(monkeypatch)
     path = tmp_path / "damaged.mcap"
-    for at in range(0, len(golden), 1 if S.FULL else 61):
+    stored = _attachment_bodies(golden)
+    assert len(stored) >= 1  # (the session; drop_on_table stores no other file)
+    checked = 0
+    for at in sorted({*range(0, len(golden), 1 if S.FULL else 61),
+                      *(start + 3 for start, _ in stored)}):  # (one inside each, in CI too)
         for value in (golden[at] ^ 0xFF, 7):
+            if value == golden[at]:
+                continue
             damaged = bytearray(golden)
             damaged[at] = value
             path.write_bytes(damaged)
+            if any(start <= at < end for start, end in stored):
+                # Inside a stored session or file: the library reads on (whatever the
+                # damage made of it); ours refuses the file. A length field damaged may
+                # make it fail elsewhere first: an error either way, never frames.
+                frames, _, message = outcome(path, ours)
+                assert frames is None and message, (at, value)
+                checked += "damaged (its CRC-32 does not match" in message
+                continue
             assert outcome(path, ours) == outcome(path, _library_records), (at, value)
+    assert checked >= 2
+
+
+def _attachment_bodies(data: bytes) -> list[tuple[int, int]]:
+    """The byte ranges of the attachment records' bodies in an MCAP file (after each
+    record's opcode and length), found by walking its records from the magic on."""
+    import struct
+    at, out = 8, []
+    while at + 9 <= len(data):
+        opcode, length = struct.unpack_from("<BQ", data, at)
+        if opcode == 0x09:  # Attachment
+            out.append((at + 9, at + 9 + length))
+        if opcode == 0x02:  # Footer: the end
+            break
+        at += 9 + length
+    return out
 
 
 @pytest.mark.parametrize("chunking, compression", [(False, "NONE"), (True, "NONE")])

@@ -16,6 +16,7 @@ import os
 import platform
 import stat
 import struct
+import zlib
 from dataclasses import asdict, dataclass
 from functools import cached_property
 from importlib import metadata as importlib_metadata
@@ -106,24 +107,65 @@ def _chunk_records(chunk: Chunk) -> Iterator[Channel | tuple[int, bytes]]:
         # Schemas and any record type this version does not know: skipped, as MCAP says.
 
 
+class DamagedAttachment(McapError):
+    """An attachment whose bytes are not those its CRC-32 was taken of."""
+
+    def __init__(self, name: str) -> None:
+        super().__init__(f"attachment {name!r} is damaged: its CRC-32 does not match its bytes")
+        self.name = name
+
+
+def _checked_attachment(stream: ReadDataStream) -> Attachment:
+    """An attachment read as the mcap library's ``Attachment.read`` reads it (the same
+    bytes), with its CRC-32 checked, which the library skips: the session and files stored
+    in a recording are what a replay re-runs, so damage there is an unusable file, not a
+    replay that diverges (a user's trial: one byte of a stored friction changed was
+    reported as a divergence at frame 112). A CRC of 0 means none was taken (MCAP)."""
+    def piece(n: int) -> bytes:
+        data = stream.read(n)
+        if len(data) < n:
+            raise EndOfFile()
+        return data
+    times = piece(16)  # log time, create time
+    name_size = piece(4)
+    name = piece(struct.unpack("<I", name_size)[0])
+    media_size = piece(4)
+    media_type = piece(struct.unpack("<I", media_size)[0])
+    data_size = piece(8)
+    data = piece(struct.unpack("<Q", data_size)[0])
+    crc = struct.unpack("<I", piece(4))[0]
+    if crc != 0:
+        computed = 0
+        for part in (times, name_size, name, media_size, media_type, data_size, data):
+            computed = zlib.crc32(part, computed)
+        if computed != crc:
+            raise DamagedAttachment(str(name, "utf-8", errors="replace"))
+    log_time, create_time = struct.unpack("<QQ", times)
+    return Attachment(create_time=create_time, log_time=log_time, name=str(name, "utf-8"),
+                      media_type=str(media_type, "utf-8"), data=data)
+
+
 # Every record outside chunks is read by the mcap library, as its StreamReader reads it
-# (so damage anywhere in the file is found as it was), but for the message indexes.
+# (so damage anywhere in the file is found as it was), but for the message indexes and the
+# attachments' CRCs.
 _READ_OUTSIDE_CHUNKS = {
-    Opcode.ATTACHMENT: Attachment.read, Opcode.ATTACHMENT_INDEX: AttachmentIndex.read,
+    Opcode.ATTACHMENT: _checked_attachment, Opcode.ATTACHMENT_INDEX: AttachmentIndex.read,
     Opcode.CHANNEL: Channel.read, Opcode.CHUNK: Chunk.read,
     Opcode.CHUNK_INDEX: ChunkIndex.read, Opcode.DATA_END: DataEnd.read,
     Opcode.FOOTER: Footer.read, Opcode.HEADER: Header.read, Opcode.METADATA: Metadata.read,
     Opcode.METADATA_INDEX: MetadataIndex.read, Opcode.SCHEMA: Schema.read,
     Opcode.STATISTICS: Statistics.read, Opcode.SUMMARY_OFFSET: SummaryOffset.read}
-_YIELDED = (Chunk, Channel, Message, Metadata, DataEnd, Footer)
+_YIELDED = (Header, Attachment, Chunk, Channel, Message, Metadata, DataEnd, Footer)
 _RECORD_SIZE_LIMIT = 4 * 2**30  # StreamReader's default: a larger record is damage
 _INDEX_HEAD = struct.Struct("<HI")  # a message index: channel id, byte length of entries
 
 
-def _records(stream) -> Iterator[Chunk | Channel | Message | DataEnd | Footer]:
-    """The chunks, channels, unchunked messages, data end and footer of an MCAP stream, in
-    order: ``StreamReader(stream, emit_chunks=True).records`` less the records a replay
-    does not use, read as the library reads them but for the message indexes (one a
+def _records(stream) -> Iterator[Header | Attachment | Chunk | Channel | Message | Metadata
+                                   | DataEnd | Footer]:
+    """The header, attachments, chunks, channels, unchunked messages, metadata, data end and
+    footer of an MCAP stream, in order: ``StreamReader(stream, emit_chunks=True).records``
+    less the records a replay does not use, read as the library reads them but for the
+    attachments' CRCs (checked, ``_checked_attachment``) and the message indexes (one a
     channel and chunk, with an entry for every message, which the library reads eight
     bytes at a time: ~3 us a frame, a quarter of a read-and-decode). An index's entries
     are read as one block of the length its head gives, so a damaged file reads on from
@@ -223,23 +265,27 @@ def _versions() -> dict[str, str]:
     return out
 
 
-def ensure_writable(path: str | Path) -> Path:
-    """Check that an output file can be written (creating its folder) before any work."""
+def ensure_writable(path: str | Path, field: str | None = None) -> Path:
+    """Check that an output file can be written (creating its folder) before any work;
+    ``field``, the option that names it, is named in the error."""
     path = Path(path)
     if path.is_dir():
-        raise RecordingError("is a folder; give a file name to write", file=str(path))
+        raise RecordingError("is a folder; give a file name to write", file=str(path),
+                             field=field)
     for folder in path.parents:
         if folder.exists():
             if not folder.is_dir():
-                raise RecordingError(f"{folder} is a file, not a folder", file=str(path))
+                raise RecordingError(f"{folder} is a file, not a folder", file=str(path),
+                                     field=field)
             break
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise RecordingError(f"cannot create its folder: {exc.strerror}", file=str(path)) \
-            from None
+        raise RecordingError(f"cannot create its folder: {exc.strerror}", file=str(path),
+                             field=field) from None
     if not os.access(path.parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
-        raise RecordingError("cannot write here: permission denied", file=str(path))
+        raise RecordingError("cannot write here: permission denied", file=str(path),
+                             field=field)
     return path
 
 
@@ -478,7 +524,7 @@ class Recording:
                 # Chunks are not opened: the writer puts attachments and metadata before
                 # any chunk, so the first one ends the head (its schemas and channels are
                 # read by frames()). Opening it here cost a whole chunk's decompression.
-                for record in StreamReader(stream, emit_chunks=True).records:
+                for record in _records(stream):
                     if isinstance(record, Header):
                         self.profile = record.profile
                     elif isinstance(record, Attachment):
@@ -487,6 +533,13 @@ class Recording:
                         self.metadata[record.name] = dict(record.metadata)
                     elif isinstance(record, (Chunk, Message)):
                         break  # schemas and channels before it may precede attachments
+        except DamagedAttachment as exc:
+            what = "session" if exc.name == SESSION_ATTACHMENT else \
+                f"file {exc.name.removeprefix(FILE_ATTACHMENT_PREFIX)!r}"
+            raise RecordingError(f"the {what} stored in it is damaged (its CRC-32 does not "
+                                 "match its bytes): it cannot be replayed; record the "
+                                 "session again, or replay a copy", file=str(self.path),
+                                 field=f"attachment {exc.name}") from None
         except _READ_ERRORS as exc:
             raise RecordingError(self._unreadable(exc), file=str(self.path)) from None
         if self.profile != PROFILE or SESSION_ATTACHMENT not in attachments:
