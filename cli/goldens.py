@@ -147,6 +147,11 @@ def main(argv: list[str] | None = None) -> int:
     tolerance = None if args.tolerance is None else parse_tolerance(args.tolerance)
     _common.UNDONE = "the goldens after the last one named were not checked"
     folder = Path(args.dir)
+    if folder.is_file():
+        # (A user's trial gave the session file itself and was told "no such folder".)
+        raise ConfigError(f"is a file, not a folder of sessions: give its folder, and the "
+                          f"session's name to take it alone (vade-goldens --dir "
+                          f"{folder.parent} {folder.stem})", file=str(folder), field="--dir")
     if not folder.is_dir():
         raise ConfigError("no such folder", file=str(folder), field="--dir")
     sessions = sorted(folder.glob("*.json"))
@@ -174,8 +179,13 @@ def main(argv: list[str] | None = None) -> int:
         except VadeError as exc:
             # One golden (or its session) missing, damaged or cut short: named, and the
             # others still checked.
-            hint = (f" (record it with vade-goldens --dir {folder} {path.stem})"
-                    if not golden.exists() and exc.file == str(golden) else "")
+            hint = ""
+            if not golden.exists() and exc.file == str(golden):
+                hint = f" (record it with vade-goldens --dir {folder} {path.stem})"
+                try:  # (a hint to record a session that cannot be recorded would fail)
+                    session_mod.load(path).build_scene()
+                except VadeError as unusable:
+                    exc, hint = unusable, ""
             print(f"error: {exc.describe()}{hint}", file=sys.stderr)
             counts["unusable"] += 1
             continue

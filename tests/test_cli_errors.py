@@ -183,7 +183,8 @@ def test_a_run_that_fails_part_way_keeps_what_it_recorded(tmp_path):
     refused = run_cli("vade-record", str(_write(tmp_path, doc)), "-o", str(out))
     _assert_clean_error(refused, str(out), "not a readable recording", "--force")
     result = run_cli("vade-record", str(_write(tmp_path, doc)), "-o", str(out), "--force")
-    _assert_clean_error(result, "log.csv", "line 10")
+    # The log named where it is, beside the session (a user's trial: bare "log.csv").
+    _assert_clean_error(result, f"{tmp_path / 'log.csv'}: line 10")
     assert out.read_bytes() == b"an older recording"  # not clobbered
     partial = tmp_path / "run.mcap.partial"
     assert str(partial) in result.stderr
@@ -986,3 +987,17 @@ def test_a_folder_given_for_an_output_names_the_option(tmp_path, option):
     result = run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"), option,
                      str(tmp_path))
     _assert_clean_error(result, f"{tmp_path}: {option}: is a folder; give a file name")
+
+
+@pytest.mark.parametrize("where, typo, meant", [
+    (("parts", 0), "densty", "density"), (("physics",), "gravty_scale_free", "gravity_scale_free")])
+def test_a_misspelt_key_is_named_with_the_one_meant(tmp_path, where, typo, meant):
+    """(A user's trial: an unknown key got only the list of allowed names, 35 for
+    ``physics``.)"""
+    doc = _doc()
+    target = doc
+    for key in where:
+        target = target.setdefault(key, {}) if isinstance(key, str) else target[key]
+    target[typo] = 1.0
+    result = run_cli("vade-record", str(_write(tmp_path, doc)), "-o", str(tmp_path / "o.mcap"))
+    _assert_clean_error(result, f"unknown field {typo!r} (a typo of {meant!r}?); allowed:")

@@ -279,3 +279,26 @@ def test_a_golden_whose_tracker_log_changed_names_the_log_and_takes_the_file_nam
     assert result.returncode == 1
     assert (f"STALE: log.csv (named by {tmp_path / 'csvsess.json'}) changed since its golden "
             "was made (file log.csv is not the one the golden was made with)") in result.stdout
+
+
+def test_a_folder_s_session_without_a_golden_is_named_by_its_own_fault(tmp_path):
+    """(A user's trial: a session with two parts of one name and no golden yet was reported
+    as "no such file (record it with vade-goldens --dir ...)", a command that would fail.)
+    A missing golden whose session is good gets that hint; one whose session cannot be
+    recorded gets the session's error. Given the session file for ``--dir``: which folder
+    and name to give."""
+    shutil.copy(RECORDINGS / "drop_on_table.json", tmp_path / "good.json")
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+    doc["parts"].append(dict(doc["parts"][0]))  # a second part of the same name
+    (tmp_path / "dup_part.json").write_text(json.dumps(doc))
+    result = run_cli("vade-goldens", "--check", "--dir", str(tmp_path))
+    assert result.returncode == 2
+    lines = result.stderr.strip().splitlines()
+    dup, = [line for line in lines if "dup_part" in line]
+    good, = [line for line in lines if "good" in line]
+    assert "record it with" not in dup and "dup_part.json" in dup
+    assert f"record it with vade-goldens --dir {tmp_path} good" in good
+    assert run_cli("vade-goldens", "--dir", str(tmp_path), "good").returncode == 0
+    as_file = run_cli("vade-goldens", "--check", "--dir", str(tmp_path / "good.json"))
+    assert as_file.returncode == 2 and "is a file, not a folder of sessions" in as_file.stderr
+    assert f"vade-goldens --dir {tmp_path} good" in as_file.stderr

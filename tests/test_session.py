@@ -426,3 +426,16 @@ def test_dynamic_friction_above_static_is_warned_of():
         "parts[0].assembly.constraints[0].friction: dynamic 0.4 is above static 0.3")
     constraint["friction"] = {"static": 0.4, "dynamic": 0.4}  # equal: a material may
     assert make_session(doc).warnings() == []
+
+
+def test_a_file_the_session_names_is_named_where_it_is(tmp_path):
+    """Beside a session file as the path was typed; inside a recording by the attachment."""
+    from vade_replay.recording import Recording
+    from vade_replay.session import load
+    folder = tmp_path / "study" / "p01"
+    folder.mkdir(parents=True)
+    (folder / "s.json").write_text((RECORDINGS / "drop_on_table.json").read_text())
+    assert load(folder / "s.json").file_named("log.csv") == str(folder / "log.csv")
+    recording = Recording(RECORDINGS / "drop_on_table.mcap")
+    assert recording.session.file_named("log.csv") == \
+        f"{RECORDINGS / 'drop_on_table.mcap'}:files/log.csv"

@@ -94,9 +94,13 @@ def validate(doc: object, *, file: str) -> None:
             known = sorted(error.schema.get("properties", {}))
             extra = sorted(k for k in error.instance if k not in known)
             if extra:
+                import difflib
                 field = f"{field}.{extra[0]}" if field != "(top level)" else extra[0]
-                raise SessionError(f"unknown field {extra[0]!r}; allowed: {', '.join(known)}",
-                                   file=file, field=field)
+                # A typo of an allowed key ("densty"): name it before the whole list.
+                close = difflib.get_close_matches(extra[0], known, n=1)
+                hint = f" (a typo of {close[0]!r}?)" if close else ""
+                raise SessionError(f"unknown field {extra[0]!r}{hint}; allowed: "
+                                   f"{', '.join(known)}", file=file, field=field)
         message = error.message
         if error.validator == "required" and isinstance(error.instance, dict):
             # A typo of the required key ("radus" for "radius"): name the key written.
@@ -418,13 +422,23 @@ class Session:
         gaps.sort()
         return gaps[len(gaps) // 2] if gaps else None
 
+    def file_named(self, name: str) -> str:
+        """Where a file the session names is, for messages: beside a session file
+        (``study/p01/log.csv``, as typed), or inside the recording that stores the session
+        (``run.mcap:files/log.csv``). (A user's trial: a bad row of ``study/p01/log.csv`` was
+        named ``log.csv: line 51``.)"""
+        head, colon, tail = self.source.rpartition(":")
+        if colon and tail == "session.json" and head.endswith(".mcap"):
+            return f"{head}:files/{name}"
+        return str(Path(self.source).parent / name)
+
     def tracker_frames(self) -> Iterator[TrackerFrame]:
         """The tracker stream to record (keyframes resampled, or the CSV log)."""
         tracker = self.doc["tracker"]
         units = self.doc.get("units", "m")
         if "csv" in tracker:
             name = tracker["csv"]
-            return inputs.from_csv(self.files[name], file=name,
+            return inputs.from_csv(self.files[name], file=self.file_named(name),
                                    units=tracker.get("csv_units", units),
                                    time_unit=tracker.get("csv_time_unit", "s"),
                                    quaternion_order=tracker["csv_quaternion_order"],
