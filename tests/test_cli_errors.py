@@ -1001,3 +1001,29 @@ def test_a_misspelt_key_is_named_with_the_one_meant(tmp_path, where, typo, meant
     target[typo] = 1.0
     result = run_cli("vade-record", str(_write(tmp_path, doc)), "-o", str(tmp_path / "o.mcap"))
     _assert_clean_error(result, f"unknown field {typo!r} (a typo of {meant!r}?); allowed:")
+
+
+@pytest.mark.parametrize("extents, given, warned", [
+    ([40.0, 40.0, 80.0], None, "40 x 40 x 80 m across, too large"),   # CAD in mm
+    ([40.0, 40.0, 80.0], "mm", None),    # its units given: as meant
+    ([0.04, 0.04, 0.08], None, None)])   # a peg of 4 x 4 x 8 cm
+def test_a_mesh_in_other_units_than_the_session_is_warned_of_first(tmp_path, extents, given,
+                                                                 warned):
+    """(A user's trial: a peg drawn in millimetres in a metre session was warned of only as
+    starting 6e+04 mm inside the table, and its grab refused as too heavy. One drawn in
+    metres in a millimetre session is refused as under a millimetre across, scene.py.)"""
+    import trimesh
+    (tmp_path / "peg.stl").write_bytes(
+        trimesh.creation.box(extents=extents).export(file_type="stl"))
+    doc = _doc()
+    doc["parts"][0]["shape"] = {"type": "mesh", "file": "peg.stl",
+                                **({"units": given} if given else {})}
+    result = run_cli("vade-record", str(_write(tmp_path, doc)), "-o", str(tmp_path / "o.mcap"))
+    lines = [line for line in result.stderr.splitlines() if line.startswith("warning")]
+    mesh = [line for line in lines if "peg.stl" in line]
+    if warned is None:
+        assert not mesh, result.stderr
+    else:
+        assert len(mesh) == 1 and warned in mesh[0] and "give shape.units" in mesh[0], \
+            result.stderr
+        assert lines.index(mesh[0]) == 0  # before what it causes (inside the table, ...)

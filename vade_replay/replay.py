@@ -1336,6 +1336,43 @@ def _sunk(collision: CollisionWorld, body, box, environment: list, gravity) -> \
     return (s, which) if s > _INSIDE_BASE_M else None
 
 
+# A part or base part held in a hand, drawn by a mesh file without its own ``units``: larger
+# than this across is a mesh in other units than the session's (CAD exports in millimetres
+# into a metre session are 1000 times too large). (One too small is refused, scene.py.)
+_MESH_LARGEST_M = 5.0
+
+
+def mesh_scale_warnings(scene: Scene, doc: dict | None) -> list[str]:
+    """A part's or the base part's mesh file (``shape.file`` with no ``shape.units``) over
+    5 m across: drawn in other units than the session's. (A user's trial: a mesh drawn in
+    millimetres in a metre session was warned of only as starting 6e+04 mm inside the
+    table, and its grab refused as too heavy.)"""
+    if not doc:
+        return []
+    units = doc.get("units", "m")
+    listed = [(f"parts[{i}]", p) for i, p in enumerate(doc.get("parts") or [])
+              if isinstance(p, dict)]
+    if isinstance(doc.get("base"), dict):
+        listed.append(("base", doc["base"]))
+    bodies = {b.name: b for b in scene.parts}
+    if scene.base is not None:
+        bodies[scene.base.name] = scene.base
+    out = []
+    for where, item in listed:
+        shape, body = item.get("shape"), bodies.get(str(item.get("name")))
+        if not isinstance(shape, dict) or shape.get("type") != "mesh" or "units" in shape \
+                or body is None:
+            continue
+        size = [body.bbox_max[k] - body.bbox_min[k] for k in range(3)]
+        if max(size) <= _MESH_LARGEST_M:
+            continue
+        across = " x ".join(f"{extent / UNIT_TO_M[units]:.3g}" for extent in size)
+        out.append(f"{where}.shape: the mesh {shape.get('file')!r} is {across} {units} "
+                   "across, too large for a part held in a hand: drawn in millimetres? give "
+                   "shape.units (its mass and inertia follow its size)")
+    return out
+
+
 def mass_warnings(scene: Scene, doc: dict | None) -> list[str]:
     """What a part's mass says of a slip in its units: a ``mass`` alone (spread evenly)
     making no solid's density; ``mass_properties`` whose mass makes no solid's density in
@@ -1599,6 +1636,7 @@ def scene_warnings(scene: Scene, collision: CollisionWorld,
                        f"final pose{what}, within physics.contact_tolerance "
                        f"({tol * 1e3:.2g} mm): it is blocked there; set contact_tolerance "
                        f"under {clear * 1e3:.2g} mm (in the session's units){or_radial}")
+    out += mesh_scale_warnings(scene, doc)
     # What a resting part can lie on: the environment, a fixed base, another part.
     fixed = [_world_box(b, b.initial_pose) for b in scene.environment]
     if scene.base is not None and scene.base_fixed:
