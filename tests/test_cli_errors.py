@@ -1027,3 +1027,16 @@ def test_a_mesh_in_other_units_than_the_session_is_warned_of_first(tmp_path, ext
         assert len(mesh) == 1 and warned in mesh[0] and "give shape.units" in mesh[0], \
             result.stderr
         assert lines.index(mesh[0]) == 0  # before what it causes (inside the table, ...)
+
+
+def test_damaged_physics_metadata_is_not_restored_by_as_recorded(tmp_path):
+    """MCAP's metadata carries no CRC: a user's trial changed the recorded model "general"
+    to "General", and --as-recorded ran with a value no session allows. It is held to the
+    session schema: exit 2 naming the metadata field; the plain replay is unaffected."""
+    path = tmp_path / "wall.mcap"
+    path.write_bytes((RECORDINGS / "plane_block_wall.mcap").read_bytes()
+                     .replace(b'"general"', b'"General"', 1))
+    result = run_cli("vade-replay", str(path), "--as-recorded")
+    _assert_clean_error(result, str(path), "metadata physics.model", "'General'",
+                        "without --as-recorded")
+    assert run_cli("vade-replay", str(path)).returncode == 0

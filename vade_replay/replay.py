@@ -37,7 +37,7 @@ from .recording import (RecordedFrame, Recording, RecordingWriter, in_place,
                         package_versions, partial_output, physics_metadata)
 from .scene import (LENGTH_FIELDS, PAPER_DEFAULTS, UNIT_TO_M, Scene, even_inertia_trace,
                     physics_from_doc)
-from .session import _DENSITY_RANGE, Session, parse, strict_json
+from .session import _DENSITY_RANGE, Session, load_schema, parse, strict_json, validate
 from .spatial import Pose
 from .step import Stepper, beyond_end
 
@@ -1902,6 +1902,18 @@ def as_made(recording: Recording) -> tuple[Session, dict | None]:
     changes = physics_changes(recording, physics_from_doc(block, f), {})
     defaults = {name: change["recorded"] for name, change in changes.items()
                 if name not in _DERIVED}
+    # Held to the session schema as if the session gave them (MCAP's metadata has no CRC:
+    # a user's trial changed "general" to "General" there and it ran unchecked).
+    allowed = load_schema("session.schema.json")["properties"]["physics"]["properties"]
+    given = {name: value for name, value in defaults.items() if name in allowed}
+    try:
+        validate({**session.doc, "physics": {**block, **given}}, file=str(recording.path))
+    except SessionError as exc:
+        raise RecordingError(f"its physics metadata cannot be restored: {exc.message} (the "
+                             "file damaged, or made by another version): replay it without "
+                             "--as-recorded", file=str(recording.path),
+                             field=f"metadata {exc.field}" if exc.field else "metadata physics"
+                             ) from None
     try:
         brought = physics_from_doc(block, f, defaults=defaults)
     except (TypeError, ValueError) as exc:
