@@ -1040,3 +1040,28 @@ def test_damaged_physics_metadata_is_not_restored_by_as_recorded(tmp_path):
     _assert_clean_error(result, str(path), "metadata physics.model", "'General'",
                         "without --as-recorded")
     assert run_cli("vade-replay", str(path)).returncode == 0
+
+
+@pytest.mark.parametrize("keep", [8, None])
+def test_a_length_damaged_near_the_start_is_not_taken_for_a_file_cut_short(tmp_path, keep):
+    """(A user's trial: a byte of the stored session's length changed, in a file whole to
+    its end, was reported as "cut short before its first frame".) The opening magic alone
+    is still a file cut short."""
+    import struct
+    data = bytearray((RECORDINGS / "drop_on_table.mcap").read_bytes())
+    path = tmp_path / "d.mcap"
+    if keep is not None:
+        path.write_bytes(bytes(data[:keep]))
+        result = run_cli("vade-replay", str(path))
+        _assert_clean_error(result, "cut short before its first frame")
+        return
+    at = 8
+    while struct.unpack_from("<B", data, at)[0] != 0x09:  # to the first attachment
+        at += 9 + struct.unpack_from("<Q", data, at + 1)[0]
+    at += 9 + 16
+    at += 4 + struct.unpack_from("<I", data, at)[0]  # its name
+    at += 4 + struct.unpack_from("<I", data, at)[0]  # its media type
+    data[at + 3] ^= 0x01  # its data's length, 2**24 bytes longer
+    path.write_bytes(bytes(data))
+    result = run_cli("vade-replay", str(path))
+    _assert_clean_error(result, str(path), "damaged near its start", "not cut short")

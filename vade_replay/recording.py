@@ -557,6 +557,15 @@ class Recording:
                                  f"reads {', '.join(codec.PARTS_ENCODINGS)})",
                                  file=str(self.path), field="metadata encoding.parts")
 
+    def _ends_as_written(self) -> bool:
+        """Whether the file ends in MCAP's closing magic (a closed file not cut short)."""
+        try:
+            with open(self.path, "rb") as stream:
+                stream.seek(-8, os.SEEK_END)
+                return stream.read(8) == MCAP_MAGIC + b"0\r\n"
+        except OSError:
+            return False
+
     def _unreadable(self, exc: BaseException) -> str:
         """Why the head of the file cannot be read, in a user's terms."""
         try:
@@ -574,6 +583,12 @@ class Recording:
         if isinstance(exc, (EndOfFile, EOFError, struct.error)):
             # (The reader's own words, "unpack requires a buffer of 8 bytes", say nothing.)
             size = self.path.stat().st_size
+            if size > 8 + 9 + 8 and self._ends_as_written():  # (not the opening magic alone)
+                # Whole to its closing magic: a length near its start is damaged, reading on
+                # past the end (a user's trial was told the file was cut short).
+                return (f"damaged near its start: a record there claims more bytes than "
+                        f"the file's {size} hold (the file itself ends as a whole recording "
+                        "does, so it is not cut short)")
             return (f"cut short before its first frame: no complete frame to replay (the "
                     f"file holds only {size} byte{'s' if size != 1 else ''})")
         return f"not a readable MCAP file ({str(exc) or type(exc).__name__})"
