@@ -148,9 +148,12 @@ def main(argv: list[str] | None = None) -> int:
     _common.UNDONE = "the goldens after the last one named were not checked"
     folder = Path(args.dir)
     if folder.is_file():
-        # (A user's trial gave the session file itself and was told "no such folder".)
+        # (A user's trial gave the session file itself and was told "no such folder"; a
+        # review: the command suggested must keep --check, or it remakes the golden.)
+        asked = (" --check" if args.check else "") + (
+            f" --tolerance {args.tolerance}" if args.tolerance is not None else "")
         raise ConfigError(f"is a file, not a folder of sessions: give its folder, and the "
-                          f"session's name to take it alone (vade-goldens --dir "
+                          f"session's name to take it alone (vade-goldens{asked} --dir "
                           f"{folder.parent} {folder.stem})", file=str(folder), field="--dir")
     if not folder.is_dir():
         raise ConfigError("no such folder", file=str(folder), field="--dir")

@@ -230,3 +230,61 @@ def test_a_second_ctrl_c_before_the_frame_s_end_is_raised_at_once(tmp_path, monk
                   on_frame=lambda r: seen.append(r.frame))
     # The frame being written when it came never reached on_frame.
     assert len(seen) < 42
+
+
+def _sigint_while_closing(monkeypatch, when) -> None:
+    """A real Ctrl-C inside ``RecordingWriter.close`` when ``when(kwargs)`` says so."""
+    import os
+    import signal
+
+    from vade_replay.recording import RecordingWriter
+    if signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+        pytest.skip("SIGINT does not have Python's own handler here")
+    close = RecordingWriter.close
+
+    def closing(self, **kwargs):
+        if when(kwargs):
+            os.kill(os.getpid(), signal.SIGINT)
+            for _ in range(1000):  # (the handler runs between bytecodes)
+                pass
+        close(self, **kwargs)
+    monkeypatch.setattr(RecordingWriter, "close", closing)
+
+
+@pytest.mark.parametrize("run", ["record", "replay -o"])
+def test_a_second_ctrl_c_while_an_interrupted_run_closes_its_file_keeps_the_frames(
+        tmp_path, monkeypatch, run):
+    """(A review: in ``record`` the close of an interrupted run was no longer held, and a
+    second Ctrl-C inside it lost every frame kept.)"""
+    out = tmp_path / "out.mcap"
+    _sigint_inside_frame(monkeypatch, at_message=3 * 40 + 2)
+    _sigint_while_closing(monkeypatch, lambda kwargs: kwargs.get("stopped") is not None)
+    with pytest.raises(KeyboardInterrupt) as caught:
+        if run == "record":
+            rp.record(load(GOLDEN.with_suffix(".json")), out)
+        else:
+            rp.replay(Recording(GOLDEN), out=out)
+    note, = [n for n in caught.value.__notes__ if "written so far are kept" in n]
+    frames = int(note.split("the ")[1].split(" ")[0])
+    summary = rp.replay(Recording(out.with_name("out.mcap.partial")))
+    assert summary.match and summary.frames == frames > 0
+
+
+@pytest.mark.parametrize("run", ["record", "replay -o"])
+def test_a_ctrl_c_as_a_run_finishes_its_file_stops_it_with_the_file_complete(
+        tmp_path, monkeypatch, run):
+    """Pressed after the last frame, while the file is finished: not lost (a review: a
+    study's loop of runs went on), and not a half-closed file: the run stops, its file
+    complete and named."""
+    import signal
+    out = tmp_path / "out.mcap"
+    _sigint_while_closing(monkeypatch, lambda kwargs: kwargs.get("complete_as") is not None)
+    with pytest.raises(KeyboardInterrupt) as caught:
+        if run == "record":
+            rp.record(load(GOLDEN.with_suffix(".json")), out)
+        else:
+            rp.replay(Recording(GOLDEN), out=out)
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    assert f"the run had reached its end: {out} is complete" in caught.value.__notes__
+    summary = rp.replay(Recording(out))
+    assert summary.match and summary.frames == 361

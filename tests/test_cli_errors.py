@@ -1065,3 +1065,75 @@ def test_a_length_damaged_near_the_start_is_not_taken_for_a_file_cut_short(tmp_p
     path.write_bytes(bytes(data))
     result = run_cli("vade-replay", str(path))
     _assert_clean_error(result, str(path), "damaged near its start", "not cut short")
+
+
+@pytest.mark.parametrize("value", ['"abc"', "0", "1e-12"])
+def test_a_damaged_effective_step_in_the_metadata_is_not_restored(tmp_path, value):
+    """(A review: a recorded ``turn_step_s`` restored through ``turn_max_step_s`` was not
+    held to the schema: "abc" and 0 were tracebacks, 1e-12 ran for minutes.)"""
+    path = tmp_path / "shaft.mcap"
+
+    def edit_metadata(name, values):
+        return {**values, "turn_step_s": value} if name == "physics" else values
+    copy_recording(RECORDINGS / "shaft_placed.mcap", path, lambda topic, index, data: data,
+                   edit_metadata=edit_metadata)
+    result = run_cli("vade-replay", str(path), "--as-recorded")
+    _assert_clean_error(result, str(path), "metadata physics.turn_max_step_s",
+                        "without --as-recorded")
+
+
+def _second_chunk_length_at(data: bytes) -> int:
+    """The offset of the length field of the file's second chunk record (opcode 0x06)."""
+    import struct
+    at, chunks = 8, 0
+    while True:
+        opcode, length = struct.unpack_from("<BQ", data, at)
+        if opcode == 0x06:
+            chunks += 1
+            if chunks == 2:
+                return at + 1
+        at += 9 + length
+
+
+def test_a_chunk_length_damaged_in_a_whole_file_is_damage_not_a_crash(tmp_path):
+    """(A review: a high byte of the second chunk's length changed, in a file whole to its
+    closing magic, replayed the first 120 of 151 frames as a crash's and said "match".)"""
+    data = bytearray((RECORDINGS / "drop_on_table.mcap").read_bytes())
+    data[_second_chunk_length_at(data) + 2] ^= 0x01  # 64 KiB longer: past the file's end
+    path = tmp_path / "d.mcap"
+    path.write_bytes(bytes(data))
+    result = run_cli("vade-replay", str(path))
+    _assert_clean_error(result, str(path), "damaged after 120 complete frames",
+                        "not cut short")
+    # Cut short for real (a crash): its complete frames replay, with a warning.
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(bytes((RECORDINGS / "drop_on_table.mcap").read_bytes()[:20000]))
+    assert run_cli("vade-replay", str(cut)).returncode == 0
+
+
+@pytest.mark.parametrize("byte", [4, 7])
+def test_an_impossible_length_near_the_start_of_a_whole_file_is_named_damage(tmp_path, byte):
+    """(A review: a high byte of the stored session's length gave "not a readable MCAP file
+    (MemoryError)" or "cannot fit 'int' into an index-sized integer".)"""
+    import struct
+    data = bytearray((RECORDINGS / "drop_on_table.mcap").read_bytes())
+    at = 8
+    while struct.unpack_from("<B", data, at)[0] != 0x09:
+        at += 9 + struct.unpack_from("<Q", data, at + 1)[0]
+    at += 9 + 16
+    at += 4 + struct.unpack_from("<I", data, at)[0]
+    at += 4 + struct.unpack_from("<I", data, at)[0]
+    data[at + byte] ^= 0x40
+    path = tmp_path / "d.mcap"
+    path.write_bytes(bytes(data))
+    result = run_cli("vade-replay", str(path))
+    _assert_clean_error(result, str(path), "damaged near its start")
+
+
+def test_an_attachment_whose_name_is_damaged_is_not_called_a_file(tmp_path):
+    path = tmp_path / "wall.mcap"
+    path.write_bytes((RECORDINGS / "plane_block_wall.mcap").read_bytes())
+    _flip_inside(path, b"session.json", offset=1)
+    result = run_cli("vade-replay", str(path))
+    _assert_clean_error(result, "the attachment whose name reads 'sdssion.json' (the "
+                                "session or a file) stored in it is damaged")

@@ -301,4 +301,7 @@ def test_a_folder_s_session_without_a_golden_is_named_by_its_own_fault(tmp_path)
     assert run_cli("vade-goldens", "--dir", str(tmp_path), "good").returncode == 0
     as_file = run_cli("vade-goldens", "--check", "--dir", str(tmp_path / "good.json"))
     assert as_file.returncode == 2 and "is a file, not a folder of sessions" in as_file.stderr
-    assert f"vade-goldens --dir {tmp_path} good" in as_file.stderr
+    # (What it suggests checks as asked: without --check it would remake the golden.)
+    assert f"vade-goldens --check --dir {tmp_path} good)" in as_file.stderr
+    remake = run_cli("vade-goldens", "--dir", str(tmp_path / "good.json"))
+    assert f"(vade-goldens --dir {tmp_path} good)" in remake.stderr

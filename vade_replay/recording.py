@@ -534,8 +534,11 @@ class Recording:
                     elif isinstance(record, (Chunk, Message)):
                         break  # schemas and channels before it may precede attachments
         except DamagedAttachment as exc:
+            # (Its name may be what is damaged: a review read "file 's\ufffdssion.json'".)
             what = "session" if exc.name == SESSION_ATTACHMENT else \
-                f"file {exc.name.removeprefix(FILE_ATTACHMENT_PREFIX)!r}"
+                f"file {exc.name.removeprefix(FILE_ATTACHMENT_PREFIX)!r}" \
+                if exc.name.startswith(FILE_ATTACHMENT_PREFIX) \
+                else f"attachment whose name reads {exc.name!r} (the session or a file)"
             raise RecordingError(f"the {what} stored in it is damaged (its CRC-32 does not "
                                  "match its bytes): it cannot be replayed; record the "
                                  "session again, or replay a copy", file=str(self.path),
@@ -580,17 +583,22 @@ class Recording:
                     "vade-record first")
         if not (first.startswith(MCAP_MAGIC) or MCAP_MAGIC.startswith(first)):
             return "not an MCAP file (it does not begin with MCAP's magic bytes)"
+        size = self.path.stat().st_size
+        # Whole to its closing magic (not the opening magic alone): a length near its start
+        # is damaged, reading on past the end (a user's trial was told the file was cut
+        # short), or too large to read at all (a review: "MemoryError").
+        whole = size > 8 + 9 + 8 and self._ends_as_written()
         if isinstance(exc, (EndOfFile, EOFError, struct.error)):
             # (The reader's own words, "unpack requires a buffer of 8 bytes", say nothing.)
-            size = self.path.stat().st_size
-            if size > 8 + 9 + 8 and self._ends_as_written():  # (not the opening magic alone)
-                # Whole to its closing magic: a length near its start is damaged, reading on
-                # past the end (a user's trial was told the file was cut short).
+            if whole:
                 return (f"damaged near its start: a record there claims more bytes than "
                         f"the file's {size} hold (the file itself ends as a whole recording "
                         "does, so it is not cut short)")
             return (f"cut short before its first frame: no complete frame to replay (the "
                     f"file holds only {size} byte{'s' if size != 1 else ''})")
+        if whole and isinstance(exc, (MemoryError, OverflowError, RecordLengthLimitExceeded)):
+            return (f"damaged near its start: a record there claims a length no file of "
+                    f"{size} bytes has ({str(exc) or type(exc).__name__})")
         return f"not a readable MCAP file ({str(exc) or type(exc).__name__})"
 
     @cached_property
@@ -615,7 +623,7 @@ class Recording:
         topics: dict[int, str] = {}
         current: RecordedFrame | None = None
         complete = data_end = footer = False
-        count = 0
+        count = size = 0
         try:
             with open(self.path, "rb") as stream:
                 size = os.fstat(stream.fileno()).st_size
@@ -658,6 +666,14 @@ class Recording:
                     complete = False  # cut short (a crash while recording)
         except OSError:
             complete = False
+        if not complete and not data_end and size > 8 + 9 + 8 and self._ends_as_written():
+            # Its data ends short, but the file is whole to its closing magic: a length
+            # damaged, read on past the end, not a file cut short (a review: a chunk's
+            # length so replayed 120 of 151 frames as a crash's, and said "match").
+            raise RecordingError(
+                f"damaged after {count} complete frames: a record there claims more bytes "
+                f"than the file's {size} hold (the file itself ends as a whole recording "
+                "does, so it is not cut short)", file=str(self.path))
         if not complete and not data_end:
             # Cut short in its data: the last frame read may lack some of its messages; drop
             # it. (Cut after the data's end record, only the index is lost: every frame is

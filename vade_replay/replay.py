@@ -1073,8 +1073,11 @@ def record(session: Session, out: str | Path, *,
     watch = TrackerWatch(session)
     writer = RecordingWriter(partial, session, scene)
     writer.warnings = summary.warnings
-    try:
-        with FrameBoundaryInterrupts() as interrupts:
+    # Held off from here to the file's close: to a frame's end while frames are written,
+    # then to the end of closing the file (a review: a second Ctrl-C raised inside the
+    # close of an interrupted run lost every frame kept).
+    with FrameBoundaryInterrupts() as interrupts:
+        try:
             # (The tracker stream is opened inside: a CSV log may fail as it is read.)
             inputs = _watched(session.tracker_frames(), watch)
             advance = Stepper(scene, collision)
@@ -1094,22 +1097,25 @@ def record(session: Session, out: str | Path, *,
                     if on_frame:
                         on_frame(record_)
                     interrupts.check()
-    except VadeError as exc:
-        if writer.frames and exc.frame is None and exc.field is None and frame is not None:
-            exc.frame = frame + 1  # the frame being made when it failed
-        kept = _kept_after(writer, target, partial, exc, "")
-        if kept is None:
+            interrupts.check()  # (one that came as the input ran out)
+        except VadeError as exc:
+            if writer.frames and exc.frame is None and exc.field is None and frame is not None:
+                exc.frame = frame + 1  # the frame being made when it failed
+            kept = _kept_after(writer, target, partial, exc, "")
+            if kept is None:
+                raise
+            raise kept from None
+        except BaseException as exc:
+            writer.close(stopped=_why_stopped(exc))
+            if isinstance(exc, KeyboardInterrupt) and writer.frames:
+                exc.add_note(_kept(writer.frames, partial))
             raise
-        raise kept from None
-    except BaseException as exc:
-        writer.close(stopped=_why_stopped(exc))
-        if isinstance(exc, KeyboardInterrupt) and writer.frames:
-            exc.add_note(_kept(writer.frames, partial))
-        raise
-    if first_time is not None:
-        summary.warnings += watch.warnings(first_time)  # (kept in the file: the same list)
-        summary.warnings += fallen_past_everything(scene, record_, first_time)
-    writer.close(complete_as=target)
+        if first_time is not None:
+            summary.warnings += watch.warnings(first_time)  # (kept in the file: the same list)
+            summary.warnings += fallen_past_everything(scene, record_, first_time)
+        writer.close(complete_as=target)
+    if interrupts.pending:
+        raise _interrupted_when_complete(target or partial)
     summary.counters = dict(collision.stats)
     return summary
 
@@ -1336,7 +1342,7 @@ def _sunk(collision: CollisionWorld, body, box, environment: list, gravity) -> \
     return (s, which) if s > _INSIDE_BASE_M else None
 
 
-# A part or base part held in a hand, drawn by a mesh file without its own ``units``: larger
+# A part or the base part, drawn by a mesh file without its own ``units``: larger
 # than this across is a mesh in other units than the session's (CAD exports in millimetres
 # into a metre session are 1000 times too large). (One too small is refused, scene.py.)
 _MESH_LARGEST_M = 5.0
@@ -1368,7 +1374,7 @@ def mesh_scale_warnings(scene: Scene, doc: dict | None) -> list[str]:
             continue
         across = " x ".join(f"{extent / UNIT_TO_M[units]:.3g}" for extent in size)
         out.append(f"{where}.shape: the mesh {shape.get('file')!r} is {across} {units} "
-                   "across, too large for a part held in a hand: drawn in millimetres? give "
+                   "across, too large for a part of an assembly: drawn in millimetres? give "
                    "shape.units (its mass and inertia follow its size)")
     return out
 
@@ -1759,6 +1765,14 @@ def _kept_after(writer: RecordingWriter, target: Path | None, partial: Path,
     return type(exc)(exc.message, file=exc.file, field=exc.field, frame=exc.frame)
 
 
+def _interrupted_when_complete(path: Path) -> KeyboardInterrupt:
+    """A Ctrl-C that came after the last frame, while the file was being finished: the
+    run stops there (a study's loop of runs with it), its file complete."""
+    stop = KeyboardInterrupt()
+    stop.add_note(f"the run had reached its end: {path} is complete")
+    return stop
+
+
 def _why_stopped(exc: BaseException) -> str:
     """What a recording that stopped early keeps as its reason (``STOPPED_METADATA``)."""
     if isinstance(exc, KeyboardInterrupt):
@@ -1902,10 +1916,27 @@ def as_made(recording: Recording) -> tuple[Session, dict | None]:
     changes = physics_changes(recording, physics_from_doc(block, f), {})
     defaults = {name: change["recorded"] for name, change in changes.items()
                 if name not in _DERIVED}
-    # Held to the session schema as if the session gave them (MCAP's metadata has no CRC:
-    # a user's trial changed "general" to "General" there and it ran unchecked).
+    _restorable(recording, session, block, defaults)
+    try:
+        brought = physics_from_doc(block, f, defaults=defaults)
+    except (TypeError, ValueError) as exc:
+        raise RecordingError(f"its physics metadata cannot be used by this version ({exc})",
+                             file=str(recording.path), field="metadata physics") from None
+    derived = {name.replace("_step_s", "_max_step_s"): change["recorded"]
+               for name, change in changes.items()
+               if name in _DERIVED and getattr(brought, name) != change["recorded"]}
+    if derived:  # (a review: an effective step of 0 or "abc" went on unchecked)
+        _restorable(recording, session, block, {**defaults, **derived})
+    return replace(session, physics_defaults={**defaults, **derived}), {**defaults, **derived}
+
+
+def _restorable(recording: Recording, session: Session, block: dict, values: dict) -> None:
+    """The physics values ``as_made`` restores, held to the session schema as if the
+    session gave them: MCAP's metadata has no CRC (a user's trial changed "general" to
+    "General" there and it ran unchecked). Those the schema does not list (this version's
+    own bookkeeping) are left to ``physics_from_doc``."""
     allowed = load_schema("session.schema.json")["properties"]["physics"]["properties"]
-    given = {name: value for name, value in defaults.items() if name in allowed}
+    given = {name: value for name, value in values.items() if name in allowed}
     try:
         validate({**session.doc, "physics": {**block, **given}}, file=str(recording.path))
     except SessionError as exc:
@@ -1914,15 +1945,6 @@ def as_made(recording: Recording) -> tuple[Session, dict | None]:
                              "--as-recorded", file=str(recording.path),
                              field=f"metadata {exc.field}" if exc.field else "metadata physics"
                              ) from None
-    try:
-        brought = physics_from_doc(block, f, defaults=defaults)
-    except (TypeError, ValueError) as exc:
-        raise RecordingError(f"its physics metadata cannot be used by this version ({exc})",
-                             file=str(recording.path), field="metadata physics") from None
-    for name, change in changes.items():
-        if name in _DERIVED and getattr(brought, name) != change["recorded"]:
-            defaults[name.replace("_step_s", "_max_step_s")] = change["recorded"]
-    return replace(session, physics_defaults=defaults), defaults
 
 
 def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
@@ -2070,6 +2092,8 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
                         on_frame(ReplayFrame(recorded, replayed, derived, divergence))
                     if interrupts is not None:
                         interrupts.check()
+            if interrupts is not None:
+                interrupts.check()  # (one that came as the recording's frames ran out)
         except RecordingError as exc:
             if exc.file is None:
                 exc.file = str(recording.path)
@@ -2088,21 +2112,26 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
                 exc.add_note(_kept(writer.frames, partial))
         raise
     finally:
+        held = False
         if interrupts is not None:
+            held = interrupts.pending  # (after the last check: the run goes on to its end)
             interrupts.__exit__(None, None, None)
     if writer and partial is not None:
-        if summary.frames == 0:
-            if target is not None:
-                writer.discard()  # nothing was written: leave nothing behind
+        with FrameBoundaryInterrupts() as closing:  # (the file finished whole, then stopped)
+            if summary.frames == 0:
+                if target is not None:
+                    writer.discard()  # nothing was written: leave nothing behind
+                else:
+                    writer.close()
             else:
-                writer.close()
-        else:
-            # The regenerated file keeps what the recording's run warned of, and that it
-            # stopped early (or was cut short), with a what-if's own warnings.
-            writer.warnings = list(recording.warnings) + summary.warnings
-            stopped = recording.stopped or ("the recording replayed was cut short"
-                                            if recording.truncated else None)
-            writer.close(complete_as=target, stopped=stopped)
+                # The regenerated file keeps what the recording's run warned of, and that
+                # it stopped early (or was cut short), with a what-if's own warnings.
+                writer.warnings = list(recording.warnings) + summary.warnings
+                stopped = recording.stopped or ("the recording replayed was cut short"
+                                                if recording.truncated else None)
+                writer.close(complete_as=target, stopped=stopped)
+        if (held or closing.pending) and summary.frames:
+            raise _interrupted_when_complete(target or partial)
     if summary.frames == 0:
         raise VadeError("recording holds no frames", file=str(recording.path))
     if applied and previous is not None and first_time is not None:
