@@ -194,6 +194,23 @@ def _sigint_inside_frame(monkeypatch, at_message: int, times: int = 1) -> None:
     monkeypatch.setattr(RecordingWriter, "_add", adding)
 
 
+def _interrupted(run: str, out) -> KeyboardInterrupt:
+    """The golden recorded (``record``) or replayed to ``out`` (``replay -o``), stopped by an
+    interrupt: the interrupt."""
+    with pytest.raises(KeyboardInterrupt) as caught:
+        if run == "record":
+            rp.record(load(GOLDEN.with_suffix(".json")), out)
+        else:
+            rp.replay(Recording(GOLDEN), out=out)
+    return caught.value
+
+
+def _frames_kept(stop: KeyboardInterrupt) -> int:
+    """The frames an interrupted run's note says it kept."""
+    note, = [n for n in stop.__notes__ if "written so far are kept" in n]
+    return int(note.split("the ")[1].split(" ")[0])
+
+
 @pytest.mark.parametrize("run", ["record", "replay -o"])
 def test_ctrl_c_while_a_frame_is_written_waits_for_the_frame_s_end(tmp_path, monkeypatch,
                                                                    run):
@@ -204,14 +221,9 @@ def test_ctrl_c_while_a_frame_is_written_waits_for_the_frame_s_end(tmp_path, mon
     import signal
     out = tmp_path / "out.mcap"
     _sigint_inside_frame(monkeypatch, at_message=3 * 40 + 2)  # inside a frame near the 40th
-    with pytest.raises(KeyboardInterrupt) as caught:
-        if run == "record":
-            rp.record(load(GOLDEN.with_suffix(".json")), out)
-        else:
-            rp.replay(Recording(GOLDEN), out=out)
+    caught = _interrupted(run, out)
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # put back
-    note, = [n for n in caught.value.__notes__ if "written so far are kept" in n]
-    frames = int(note.split("the ")[1].split(" ")[0])
+    frames = _frames_kept(caught)
     assert 30 <= frames <= 41
     partial = out.with_name("out.mcap.partial")
     summary = rp.replay(Recording(partial))
@@ -259,13 +271,8 @@ def test_a_second_ctrl_c_while_an_interrupted_run_closes_its_file_keeps_the_fram
     out = tmp_path / "out.mcap"
     _sigint_inside_frame(monkeypatch, at_message=3 * 40 + 2)
     _sigint_while_closing(monkeypatch, lambda kwargs: kwargs.get("stopped") is not None)
-    with pytest.raises(KeyboardInterrupt) as caught:
-        if run == "record":
-            rp.record(load(GOLDEN.with_suffix(".json")), out)
-        else:
-            rp.replay(Recording(GOLDEN), out=out)
-    note, = [n for n in caught.value.__notes__ if "written so far are kept" in n]
-    frames = int(note.split("the ")[1].split(" ")[0])
+    caught = _interrupted(run, out)
+    frames = _frames_kept(caught)
     summary = rp.replay(Recording(out.with_name("out.mcap.partial")))
     assert summary.match and summary.frames == frames > 0
 
@@ -279,12 +286,8 @@ def test_a_ctrl_c_as_a_run_finishes_its_file_stops_it_with_the_file_complete(
     import signal
     out = tmp_path / "out.mcap"
     _sigint_while_closing(monkeypatch, lambda kwargs: kwargs.get("complete_as") is not None)
-    with pytest.raises(KeyboardInterrupt) as caught:
-        if run == "record":
-            rp.record(load(GOLDEN.with_suffix(".json")), out)
-        else:
-            rp.replay(Recording(GOLDEN), out=out)
+    caught = _interrupted(run, out)
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
-    assert f"the run had reached its end: {out} is complete" in caught.value.__notes__
+    assert f"the run had reached its end: {out} is complete" in caught.__notes__
     summary = rp.replay(Recording(out))
     assert summary.match and summary.frames == 361
