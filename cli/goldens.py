@@ -64,6 +64,10 @@ def stale(session: session_mod.Session, recording: Recording) -> str | None:
 def _check(path: Path, golden: Path, tolerance: Tolerance | None = None) -> tuple[str, str]:
     """``(outcome, line)``: match, within (the tolerance), diverged or stale."""
     session = session_mod.load(path)  # a bad session file: unusable, named
+    if not golden.exists():
+        # One that cannot be built is named for that, not as a golden to record (a user's
+        # trial: the hint to record it would fail).
+        session.build_scene()
     recording = Recording(golden)
     changed = stale(session, recording)
     if changed is not None:
@@ -182,13 +186,8 @@ def main(argv: list[str] | None = None) -> int:
         except VadeError as exc:
             # One golden (or its session) missing, damaged or cut short: named, and the
             # others still checked.
-            hint = ""
-            if not golden.exists() and exc.file == str(golden):
-                hint = f" (record it with vade-goldens --dir {folder} {path.stem})"
-                try:  # (a hint to record a session that cannot be recorded would fail)
-                    session_mod.load(path).build_scene()
-                except VadeError as unusable:
-                    exc, hint = unusable, ""
+            hint = (f" (record it with vade-goldens --dir {folder} {path.stem})"
+                    if not golden.exists() and exc.file == str(golden) else "")
             print(f"error: {exc.describe()}{hint}", file=sys.stderr)
             counts["unusable"] += 1
             continue

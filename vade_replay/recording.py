@@ -561,9 +561,13 @@ class Recording:
                                  file=str(self.path), field="metadata encoding.parts")
 
     def _ends_as_written(self) -> bool:
-        """Whether the file ends in MCAP's closing magic (a closed file not cut short)."""
+        """Whether the file ends in MCAP's closing magic (a closed file not cut short), after
+        more than the opening magic and a record's head (a file cut just after its opening
+        magic ends in the same bytes)."""
         try:
             with open(self.path, "rb") as stream:
+                if stream.seek(0, os.SEEK_END) <= 8 + 9 + 8:
+                    return False
                 stream.seek(-8, os.SEEK_END)
                 return stream.read(8) == MCAP_MAGIC + b"0\r\n"
         except OSError:
@@ -584,10 +588,10 @@ class Recording:
         if not (first.startswith(MCAP_MAGIC) or MCAP_MAGIC.startswith(first)):
             return "not an MCAP file (it does not begin with MCAP's magic bytes)"
         size = self.path.stat().st_size
-        # Whole to its closing magic (not the opening magic alone): a length near its start
-        # is damaged, reading on past the end (a user's trial was told the file was cut
-        # short), or too large to read at all (a review: "MemoryError").
-        whole = size > 8 + 9 + 8 and self._ends_as_written()
+        # Whole to its closing magic: a length near its start is damaged, reading on past
+        # the end (a user's trial was told the file was cut short), or too large to read at
+        # all (a review: "MemoryError").
+        whole = self._ends_as_written()
         if isinstance(exc, (EndOfFile, EOFError, struct.error)):
             # (The reader's own words, "unpack requires a buffer of 8 bytes", say nothing.)
             if whole:
@@ -623,7 +627,7 @@ class Recording:
         topics: dict[int, str] = {}
         current: RecordedFrame | None = None
         complete = data_end = footer = False
-        count = size = 0
+        count = 0
         try:
             with open(self.path, "rb") as stream:
                 size = os.fstat(stream.fileno()).st_size
@@ -666,7 +670,7 @@ class Recording:
                     complete = False  # cut short (a crash while recording)
         except OSError:
             complete = False
-        if not complete and not data_end and size > 8 + 9 + 8 and self._ends_as_written():
+        if not complete and not data_end and self._ends_as_written():
             # Its data ends short, but the file is whole to its closing magic: a length
             # damaged, read on past the end, not a file cut short (a review: a chunk's
             # length so replayed 120 of 151 frames as a crash's, and said "match").

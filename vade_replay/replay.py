@@ -10,6 +10,7 @@ field and both values.
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import json
 import math
@@ -1925,9 +1926,10 @@ def as_made(recording: Recording) -> tuple[Session, dict | None]:
     derived = {name.replace("_step_s", "_max_step_s"): change["recorded"]
                for name, change in changes.items()
                if name in _DERIVED and getattr(brought, name) != change["recorded"]}
+    restored = {**defaults, **derived}
     if derived:  # (a review: an effective step of 0 or "abc" went on unchecked)
-        _restorable(recording, session, block, {**defaults, **derived})
-    return replace(session, physics_defaults={**defaults, **derived}), {**defaults, **derived}
+        _restorable(recording, session, block, restored)
+    return replace(session, physics_defaults=restored), restored
 
 
 def _restorable(recording: Recording, session: Session, block: dict, values: dict) -> None:
@@ -2025,113 +2027,110 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     beyond: str | None = None  # (with a tolerance: the first frame past it, and why)
     if applied:
         summary.recorded_analysis = SessionAnalysis()
-    # (Writing a recording, a Ctrl-C is held off to the end of its frame.)
-    interrupts = FrameBoundaryInterrupts().__enter__() if writer is not None else None
-    try:
+    # Writing a recording, a Ctrl-C is held off to the end of the frame being written, and
+    # of closing the file (as ``record`` holds it).
+    with FrameBoundaryInterrupts() if writer is not None else contextlib.nullcontext() \
+            as interrupts:
         try:
-            # No generators between the reader and the check, and a ReplayFrame only for an
-            # on_frame: ~2 us a frame less. Read, stepped and checked a batch at a time
-            # (``_stepped``): ~25 % less a frame on a 2-core EPYC (vade-bench --replay).
-            for batch, stepped in _stepped(recording.frames(), advance, _INPUTS):
-                for recorded, replayed in zip(batch, stepped):
-                    if writer is None:
-                        # The check by bytes, and by value where they differ
-                        # (``FrameEncoder.check``).
-                        ours = encoder.check(replayed, recorded.derived)
-                        derived = recorded.derived if ours is None else ours
-                    else:
-                        derived = encoder.derived_messages(replayed)
-                        ours = None if recorded.derived == derived else derived
-                    divergence = None if ours is None \
-                        else _divergence(recorded.inputs, recorded.derived, derived, replayed,
-                                         previous)
-                    if divergence and not applied and departure is None \
-                            and summary.first_divergence is None:
-                        # The frame before matched: it is the recording's, decoded.
-                        departure, decoded = Departure(), previous
-                    previous = replayed
-                    if first_time is None:
-                        first_time = replayed.time_ns
-                    summary.count(replayed, first_time)
-                    summary.messages_checked += len(recorded.derived)
-                    if replayed.events:
-                        landed(summary.release_misses, open_misses, replayed)
-                        summary.release_misses += release_misses(scene, replayed, first_time)
-                        _opened(summary.release_misses, open_misses, replayed)
-                    if departure is not None:
-                        try:
-                            decoded = recorded_record(recorded, decoded)
-                        except VadeError as exc:
-                            # A recorded message this cannot read (a plain replay names it as
-                            # a divergence): the run goes on, without the comparisons.
-                            if summary.recorded_analysis is not None:
-                                summary.warnings.append(
-                                    f"no comparison with the recording's analysis or poses: its "
-                                    f"frame {recorded.inputs.frame} cannot be read ({exc.message})")
-                            summary.recorded_analysis = departure = decoded = None
-                            unreadable = True
+            try:
+                # No generators between the reader and the check, and a ReplayFrame only for an
+                # on_frame: ~2 us a frame less. Read, stepped and checked a batch at a time
+                # (``_stepped``): ~25 % less a frame on a 2-core EPYC (vade-bench --replay).
+                for batch, stepped in _stepped(recording.frames(), advance, _INPUTS):
+                    for recorded, replayed in zip(batch, stepped):
+                        if writer is None:
+                            # The check by bytes, and by value where they differ
+                            # (``FrameEncoder.check``).
+                            ours = encoder.check(replayed, recorded.derived)
+                            derived = recorded.derived if ours is None else ours
                         else:
-                            departure.add(decoded, replayed)
-                            if summary.recorded_analysis is not None:
-                                summary.recorded_analysis.add(decoded)
-                    if divergence and summary.first_divergence is None:
-                        summary.first_divergence = divergence.__dict__ | {
-                            "text": divergence.describe()}
-                    if applied and ours is not None and summary.first_event_change is None:
-                        summary.first_event_change = _event_change(recorded.derived, ours,
-                                                                    replayed, first_time)
-                    if tolerance is not None and divergence and beyond is None:
-                        why = frame_beyond(recorded.derived, ours, tolerance)
-                        if why is not None:
-                            t = (replayed.time_ns - (replayed.time_ns if first_time is None
-                                                     else first_time)) / 1e9
-                            beyond = f"frame {replayed.frame} (t = {t:.6f} s): {why}"
-                    if writer:
-                        writer.write_frame(replayed, derived)
-                    if on_frame:
-                        on_frame(ReplayFrame(recorded, replayed, derived, divergence))
-                    if interrupts is not None:
-                        interrupts.check()
-            if interrupts is not None:
-                interrupts.check()  # (one that came as the recording's frames ran out)
-        except RecordingError as exc:
-            if exc.file is None:
-                exc.file = str(recording.path)
+                            derived = encoder.derived_messages(replayed)
+                            ours = None if recorded.derived == derived else derived
+                        divergence = None if ours is None \
+                            else _divergence(recorded.inputs, recorded.derived, derived, replayed,
+                                             previous)
+                        if divergence and not applied and departure is None \
+                                and summary.first_divergence is None:
+                            # The frame before matched: it is the recording's, decoded.
+                            departure, decoded = Departure(), previous
+                        previous = replayed
+                        if first_time is None:
+                            first_time = replayed.time_ns
+                        summary.count(replayed, first_time)
+                        summary.messages_checked += len(recorded.derived)
+                        if replayed.events:
+                            landed(summary.release_misses, open_misses, replayed)
+                            summary.release_misses += release_misses(scene, replayed, first_time)
+                            _opened(summary.release_misses, open_misses, replayed)
+                        if departure is not None:
+                            try:
+                                decoded = recorded_record(recorded, decoded)
+                            except VadeError as exc:
+                                # A recorded message this cannot read (a plain replay names it as
+                                # a divergence): the run goes on, without the comparisons.
+                                if summary.recorded_analysis is not None:
+                                    summary.warnings.append(
+                                        "no comparison with the recording's analysis or "
+                                        f"poses: its frame {recorded.inputs.frame} cannot be "
+                                        f"read ({exc.message})")
+                                summary.recorded_analysis = departure = decoded = None
+                                unreadable = True
+                            else:
+                                departure.add(decoded, replayed)
+                                if summary.recorded_analysis is not None:
+                                    summary.recorded_analysis.add(decoded)
+                        if divergence and summary.first_divergence is None:
+                            summary.first_divergence = divergence.__dict__ | {
+                                "text": divergence.describe()}
+                        if applied and ours is not None and summary.first_event_change is None:
+                            summary.first_event_change = _event_change(recorded.derived, ours,
+                                                                        replayed, first_time)
+                        if tolerance is not None and divergence and beyond is None:
+                            why = frame_beyond(recorded.derived, ours, tolerance)
+                            if why is not None:
+                                t = (replayed.time_ns - (replayed.time_ns if first_time is None
+                                                         else first_time)) / 1e9
+                                beyond = f"frame {replayed.frame} (t = {t:.6f} s): {why}"
+                        if writer:
+                            writer.write_frame(replayed, derived)
+                        if on_frame:
+                            on_frame(ReplayFrame(recorded, replayed, derived, divergence))
+                        if interrupts is not None:
+                            interrupts.check()
+                if interrupts is not None:
+                    interrupts.check()  # (one that came as the recording's frames ran out)
+            except RecordingError as exc:
+                if exc.file is None:
+                    exc.file = str(recording.path)
+                raise
+        except VadeError as exc:
+            if writer is None or partial is None:
+                raise
+            kept = _kept_after(writer, target, partial, exc, "regenerated ")
+            if kept is None:
+                raise
+            raise kept from None
+        except BaseException as exc:
+            if writer:
+                writer.close(stopped=_why_stopped(exc))
+                if isinstance(exc, KeyboardInterrupt) and writer.frames and partial is not None:
+                    exc.add_note(_kept(writer.frames, partial))
             raise
-    except VadeError as exc:
-        if writer is None or partial is None:
-            raise
-        kept = _kept_after(writer, target, partial, exc, "regenerated ")
-        if kept is None:
-            raise
-        raise kept from None
-    except BaseException as exc:
-        if writer:
-            writer.close(stopped=_why_stopped(exc))
-            if isinstance(exc, KeyboardInterrupt) and writer.frames and partial is not None:
-                exc.add_note(_kept(writer.frames, partial))
-        raise
-    finally:
-        held = False
-        if interrupts is not None:
-            held = interrupts.pending  # (after the last check: the run goes on to its end)
-            interrupts.__exit__(None, None, None)
-    if writer and partial is not None:
-        with FrameBoundaryInterrupts() as closing:  # (the file finished whole, then stopped)
+        if writer and partial is not None:
             if summary.frames == 0:
                 if target is not None:
                     writer.discard()  # nothing was written: leave nothing behind
                 else:
                     writer.close()
             else:
-                # The regenerated file keeps what the recording's run warned of, and that
-                # it stopped early (or was cut short), with a what-if's own warnings.
+                # The regenerated file keeps what the recording's run warned of, and that it
+                # stopped early (or was cut short), with a what-if's own warnings.
                 writer.warnings = list(recording.warnings) + summary.warnings
                 stopped = recording.stopped or ("the recording replayed was cut short"
                                                 if recording.truncated else None)
                 writer.close(complete_as=target, stopped=stopped)
-        if (held or closing.pending) and summary.frames:
-            raise _interrupted_when_complete(target or partial)
+    if interrupts is not None and interrupts.pending and summary.frames:
+        raise _interrupted_when_complete(target or partial)
     if summary.frames == 0:
         raise VadeError("recording holds no frames", file=str(recording.path))
     if applied and previous is not None and first_time is not None:

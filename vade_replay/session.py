@@ -428,7 +428,7 @@ class Session:
         (``run.mcap:files/log.csv``). (A user's trial: a bad row of ``study/p01/log.csv`` was
         named ``log.csv: line 51``.)"""
         head, colon, tail = self.source.rpartition(":")
-        if colon and tail == "session.json" and head.endswith((".mcap", ".mcap.partial")):
+        if colon and tail == "session.json":  # (``Recording``'s source for its session)
             return f"{head}:files/{name}"
         return str(Path(self.source).parent / name)
 
