@@ -22,8 +22,10 @@ import orjson
 from . import events as ev
 from . import native
 from .errors import RecordingError
+from collections.abc import Callable, Iterator
+
 from .frames import (MAX_ABS_POSITION_M, DeviceSample, FrameRecord, PartSnapshot,
-                     TrackerFrame, changed_indices)
+                     RecordedFrame, TrackerFrame, changed_indices)
 
 TRACKER_TOPIC: Final = "/tracker"
 PARTS_TOPIC: Final = "/parts"
@@ -146,9 +148,14 @@ def _decode_devices_fast(devices: dict) -> tuple | None:
     most MAX_ABS_POSITION_M and a bool or null grip each), checked number by number;
     ``None`` for anything else, which the per-device path below then decodes or refuses,
     naming it. (Compiled, the numbers are C doubles here: a NaN fails ``<=``.)"""
-    out = []
-    for name in sorted(devices):
-        d = devices[name]
+    out: list[tuple[str, DeviceSample]] = []
+    last = ""
+    # In the order written (orjson keeps it): sorted, as this encoder writes them; else
+    # taken again sorted.
+    for name, d in devices.items():
+        if out and not name > last:
+            return _decode_devices_fast({k: devices[k] for k in sorted(devices)})
+        last = name
         if type(d) is not dict:
             return None
         pos, rot, grip = d.get("position"), d.get("xyzw"), d.get("grip")
@@ -203,6 +210,35 @@ def decode_tracker(data: bytes) -> TrackerFrame:
             _vec(d.get("xyzw"), 4, topic=TRACKER_TOPIC, field=f"{name}.xyzw", frame=frame),
             grip)))
     return TrackerFrame(frame, time_ns, tuple(samples))
+
+
+def recorded_frames(messages: Iterator[Any], topics: dict[int, str],
+                    other: Callable[[Any], None],
+                    pending: list[RecordedFrame]) -> Iterator[RecordedFrame]:
+    """A recording's messages (``recording._messages``: ``(channel id, data)`` tuples and
+    the records between them) as frames: a tracker message (decoded, ``decode_tracker``)
+    and the derived messages after it. A frame is yielded when the next one begins; the
+    one being read is ``pending[0]`` (the caller decides, when the messages end or the
+    reading fails, whether it is whole). Any other record goes to ``other``, which keeps
+    ``topics`` (channel id -> topic) up to date. Compiled, the per-message work of
+    ``Recording.frames`` in C."""
+    current: RecordedFrame | None = None
+    for record in messages:
+        if type(record) is tuple:
+            channel_id, data = record
+            topic = topics.get(channel_id)
+            if topic == TRACKER_TOPIC:
+                if current is not None:
+                    pending.clear()
+                    yield current
+                current = RecordedFrame(decode_tracker(data), [])
+                pending.append(current)
+            elif topic is not None and topic in CHANNELS:
+                if current is None:
+                    raise RecordingError(f"{topic} message before the first tracker frame")
+                current.derived.append((topic, data))
+        else:
+            other(record)
 
 
 def snapshot_dict(s: PartSnapshot) -> dict:

@@ -120,6 +120,19 @@ class FrameRecord:
         return self.inputs.time_ns
 
 
+@dataclass(slots=True)
+class RecordedFrame:
+    """One frame as read back: its inputs and its derived messages, bytes as recorded.
+    (Here, compiled, made by ``codec.recorded_frames``: a direct C call a frame.)"""
+
+    inputs: TrackerFrame
+    derived: list[tuple[str, bytes]]
+
+    def __init__(self, inputs: TrackerFrame, derived: list[tuple[str, bytes]]) -> None:
+        self.inputs = inputs
+        self.derived = derived
+
+
 def changed_indices(new: tuple, old: tuple | None) -> list[int]:
     """Indices at which ``new`` holds another object than ``old`` (all, if the lengths
     differ). Snapshots of parts nothing moved are the same objects frame after frame

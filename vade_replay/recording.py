@@ -42,7 +42,7 @@ from zstandard import ZstdError
 
 from . import codec
 from .errors import RecordingError
-from .frames import FrameRecord, TrackerFrame
+from .frames import FrameRecord, RecordedFrame, TrackerFrame
 from .scene import Scene
 from .session import MCAP_MAGIC, Session, load_schema, parse, validated_digest
 
@@ -485,14 +485,6 @@ class RecordingWriter:
         self.close()
 
 
-@dataclass
-class RecordedFrame:
-    """One frame as read back: its inputs and its derived messages, bytes as recorded."""
-
-    inputs: TrackerFrame
-    derived: list[tuple[str, bytes]]
-
-
 class Recording:
     """A recording opened for reading: session from attachments, metadata, frame stream.
 
@@ -625,39 +617,39 @@ class Recording:
     def frames(self) -> Iterator[RecordedFrame]:
         """Frames in the order written, streaming chunk by chunk."""
         topics: dict[int, str] = {}
-        current: RecordedFrame | None = None
-        complete = data_end = footer = False
+        ends = [False, False]  # a data end or footer read (complete), a footer read
+        pending: list[RecordedFrame] = []  # the frame being read (codec.recorded_frames)
+
+        def other(record) -> None:  # what is not a message: kept, or a note of the end
+            if isinstance(record, Channel):
+                topics[record.id] = record.topic
+            elif isinstance(record, Metadata):
+                if record.name == STOPPED_METADATA:
+                    self.stopped = record.metadata.get("reason", "stopped")
+                elif record.name == WARNINGS_METADATA:
+                    self.warnings = [record.metadata[k] for k in sorted(
+                        record.metadata, key=lambda k: int(k) if k.isdigit() else 1 << 30)]
+            else:  # DataEnd, Footer
+                ends[0] = True
+                ends[1] = ends[1] or isinstance(record, Footer)
+
+        complete = False
         count = 0
         try:
             with open(self.path, "rb") as stream:
                 size = os.fstat(stream.fileno()).st_size
                 try:
-                    for record in _messages(stream):
-                        if type(record) is tuple:
-                            channel_id, data = record
-                            topic = topics.get(channel_id)
-                            if topic == codec.TRACKER_TOPIC:
-                                if current is not None:
-                                    yield current
-                                    count += 1
-                                current = RecordedFrame(self._decode_inputs(data), [])
-                            elif topic in codec.CHANNELS:
-                                if current is None:
-                                    raise RecordingError(f"{topic} message before the first "
-                                                         "tracker frame", file=str(self.path))
-                                current.derived.append((topic, data))
-                        elif isinstance(record, Channel):
-                            topics[record.id] = record.topic
-                        elif isinstance(record, Metadata):
-                            if record.name == STOPPED_METADATA:
-                                self.stopped = record.metadata.get("reason", "stopped")
-                            elif record.name == WARNINGS_METADATA:
-                                self.warnings = [record.metadata[k] for k in sorted(
-                                    record.metadata, key=lambda k: int(k) if k.isdigit()
-                                    else 1 << 30)]
-                        else:  # DataEnd, Footer
-                            complete = data_end = True
-                            footer = footer or isinstance(record, Footer)
+                    # The grouping of messages into frames compiled (``codec``): ~0.6 us a
+                    # frame less than this loop over every message.
+                    for frame in codec.recorded_frames(_messages(stream), topics, other, pending):
+                        yield frame
+                        count += 1
+                    complete = ends[0]
+                except RecordingError as exc:
+                    if exc.file is not None:
+                        raise
+                    raise RecordingError(exc.message, file=str(self.path), field=exc.field,
+                                         frame=exc.frame) from None
                 except _READ_ERRORS as exc:
                     at = stream.tell()
                     if not (isinstance(exc, (EndOfFile, EOFError)) or at >= size):
@@ -670,6 +662,7 @@ class Recording:
                     complete = False  # cut short (a crash while recording)
         except OSError:
             complete = False
+        data_end, footer = ends
         if not complete and not data_end and self._ends_as_written():
             # Its data ends short, but the file is whole to its closing magic: a length
             # damaged, read on past the end, not a file cut short (a review: a chunk's
@@ -685,17 +678,10 @@ class Recording:
             self.truncated = True
             return
         self.end_lost = not (footer and complete)  # (complete: read to its closing magic)
-        if current is not None:
-            yield current
+        if pending:
+            yield pending[0]
         if self.stopped is not None:
             self.truncated = True  # closed properly, but short of its session's end
-
-    def _decode_inputs(self, data: bytes) -> TrackerFrame:
-        try:
-            return codec.decode_tracker(data)
-        except RecordingError as exc:
-            raise RecordingError(exc.message, file=str(self.path), field=exc.field,
-                                 frame=exc.frame) from None
 
 
 def read_and_decode(path: str | Path) -> int:

@@ -271,7 +271,7 @@ class Body:
 # Devices of the tracker stream that are not tools.
 HAND_DEVICES = ("head", "left_hand", "right_hand")
 # The grip of a part held by both hands, in its Held and its events (not a device).
-BOTH_HANDS = "both_hands"
+BOTH_HANDS: Final = "both_hands"
 
 
 @dataclass(frozen=True)

@@ -15,6 +15,8 @@ Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
 Mat3 = tuple[Vec3, Vec3, Vec3]
 
+# (Not Final: mypyc 2.4 compiles a Final tuple of floats read anywhere to "value for final
+# name ... was not set".)
 IDENTITY_QUAT: Quat = (0.0, 0.0, 0.0, 1.0)
 ZERO3: Vec3 = (0.0, 0.0, 0.0)
 
@@ -72,7 +74,9 @@ def quat_conj(q: Quat) -> Quat:
 
 def quat_normalize(q: Quat) -> Quat:
     n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-    if n == 0.0 or not math.isfinite(n):
+    # (Compiled, isinf and isnan are C calls; math.isfinite, no mypyc primitive, a Python
+    # call on a boxed float: this runs for every pose composed.)
+    if n == 0.0 or math.isinf(n) or math.isnan(n):
         raise ValueError(f"not a rotation quaternion: {q}")
     # One sign for each rotation keeps recorded values canonical.
     if q[3] < 0.0:

@@ -23,7 +23,9 @@ from .modes import Cause, Mode, check_transition
 from .scene import BOTH_HANDS, Body, Scene
 from .state import Held, OnBase, PartState, Resting, WorldState
 
-RIGHT, LEFT = "right_hand", "left_hand"
+# Final: compiled, a C constant (a plain module name is a lookup in the module dict at every use).
+RIGHT: Final = "right_hand"
+LEFT: Final = "left_hand"
 # The modes, read once. Compiled, ``Mode.STATIC`` is a lookup on the enum class through
 # ``EnumType.__getattr__`` (~700 instructions, dozens a frame); a Final name of this
 # module is a C static.
@@ -34,9 +36,9 @@ ONBASESTATIC: Final = Mode.ONBASESTATIC
 INSPACE: Final = Mode.INSPACE
 STATIC: Final = Mode.STATIC
 PLACED: Final = Mode.PLACED
-_GRABBABLE = (STATIC, INSPACE, ONBASESLIDE, ONBASESTATIC, PLACED)
+_GRABBABLE: Final = (STATIC, INSPACE, ONBASESLIDE, ONBASESTATIC, PLACED)
 # What a tool attaches: what a hand could grab, and a part in a hand (handed over).
-_TOOL_GRABBABLE = (*_GRABBABLE, INHAND)
+_TOOL_GRABBABLE: Final = (*_GRABBABLE, INHAND)
 _HANDS: Final = (LEFT, RIGHT)
 _CA_MAX_ITERATIONS: Final = 10_000
 _MIN_SUPPORT_COS: Final = 0.1
@@ -183,19 +185,29 @@ def _base_sample(f: _Frame, base: Body, last: tuple | None,
     return sample, (v, w)
 
 
+def _was_gripping(grips: tuple[tuple[str, bool], ...], device: str) -> bool:
+    """The last frame's grip of ``device`` (``WorldState.grips``; False for one not there):
+    ``dict(grips).get(device, False)`` without a dict made three times a frame."""
+    for name, grip in grips:
+        if name == device:
+            return grip
+    return False
+
+
 # --- stages ---------------------------------------------------------------------------
 
 def _read_hands(f: _Frame, state: WorldState) -> None:
     """The hands' and the tools' poses and grips (a device without a sample this frame keeps
     its grip and has no pose)."""
-    previous = dict(state.grips)
+    previous = state.grips
     for hand in _grip_devices(f.scene):
         sample = f.inputs.device(hand)
         if sample is None:
-            f.grips[hand] = previous.get(hand, False)
+            f.grips[hand] = _was_gripping(previous, hand)
             continue
         f.hands[hand] = sp.Pose(sample.position, sample.rotation_xyzw)
-        f.grips[hand] = bool(sample.grip) if sample.grip is not None else previous.get(hand, False)
+        f.grips[hand] = bool(sample.grip) if sample.grip is not None \
+            else _was_gripping(previous, hand)
 
 
 def _move_base(f: _Frame) -> None:
@@ -248,9 +260,9 @@ def _grip_devices(scene: Scene) -> tuple[str, ...]:
 
 
 def _releases(f: _Frame, state: WorldState) -> None:
-    previous = dict(state.grips)
+    previous = state.grips
     for hand in _grip_devices(f.scene):
-        if not (previous.get(hand, False) and not f.grips[hand]):
+        if not (_was_gripping(previous, hand) and not f.grips[hand]):
             continue
         for index in f.awake:
             part = f.parts[index]
@@ -270,7 +282,7 @@ def _taken_over(f: _Frame, state: WorldState, hand: str, index: int) -> bool:
     if hand != LEFT and hand != RIGHT:
         return False
     other = _other(hand)
-    if dict(state.grips).get(other, False) or not f.grips.get(other, False) \
+    if _was_gripping(state.grips, other) or not f.grips.get(other, False) \
             or other not in f.hands \
             or (other == LEFT and f.scene.base_in_hand):
         return False
@@ -280,9 +292,9 @@ def _taken_over(f: _Frame, state: WorldState, hand: str, index: int) -> bool:
 
 
 def _grabs(f: _Frame, state: WorldState) -> None:
-    previous = dict(state.grips)
+    previous = state.grips
     closing = [hand for hand in _grip_devices(f.scene)
-               if not previous.get(hand, False) and f.grips[hand] and hand in f.hands
+               if not _was_gripping(previous, hand) and f.grips[hand] and hand in f.hands
                # The left hand holds the base part; it grabs in scenes without one or with
                # a fixed one.
                and not (hand == LEFT and f.scene.base_in_hand)]
@@ -1200,8 +1212,10 @@ def _static_hold(mate: cn.Mate, m: OnBase, physics, turn_path: onbase.GravityPat
     A part that also turns reuses the turning's gravity path, scaled (a test only: when it
     fails, sliding gets its own path).
     """
-    if any(m.slide_rate) or physics.slide_integrator not in ("analytic", "analytic4",
-                                                             "midpoint") \
+    for rate in m.slide_rate:  # (compiled, a C loop: ``any`` is a Python call)
+        if rate != 0.0:
+            return False
+    if physics.slide_integrator not in ("analytic", "analytic4", "midpoint") \
             or mate.kind not in ("axis", "plane"):
         return False
     if turn_path is not None and physics.gravity_scale_rotation != 0.0:
@@ -1215,7 +1229,10 @@ def _static_hold(mate: cn.Mate, m: OnBase, physics, turn_path: onbase.GravityPat
     drift = gmag * phi + 1e-12 * gmag
     n_load, _ = onbase.normal_load(mate.kind, mate.base_dirs, _axis(mate), g0)
     gt = onbase.project_blocked(onbase.tangential(mate.slide_dirs, g0), m.blocked_slide)
-    drive = math.sqrt(sum(c * c for c in gt))
+    drive2 = 0.0
+    for c in gt:
+        drive2 += c * c
+    drive = math.sqrt(drive2)
     return drive + drift <= max(mate.static_friction, mate.dynamic_friction) * (n_load - drift)
 
 
@@ -1927,8 +1944,8 @@ def snapshot(part: PartState) -> PartSnapshot:
                         part.linear_velocity, part.angular_velocity)
 
 
-_INHAND_TEXT: str = Mode.INHAND.value
-_STATIC_TEXT: str = Mode.STATIC.value
+_INHAND_TEXT: Final[str] = Mode.INHAND.value
+_STATIC_TEXT: Final[str] = Mode.STATIC.value
 
 
 def frame_record(scene: Scene, state: WorldState, inputs: TrackerFrame,
