@@ -291,3 +291,45 @@ def test_a_ctrl_c_as_a_run_finishes_its_file_stops_it_with_the_file_complete(
     assert f"the run had reached its end: {out} is complete" in caught.__notes__
     summary = rp.replay(Recording(out))
     assert summary.match and summary.frames == 361
+
+
+def _summary(path, **kwargs) -> dict:
+    out = rp.replay(Recording(path), **kwargs).to_dict()
+    out.pop("build")
+    return out
+
+
+@pytest.mark.parametrize("golden", sorted(RECORDINGS.glob("*.mcap")), ids=lambda p: p.stem)
+def test_the_compiled_run_of_matching_frames_sums_up_as_the_frame_by_frame_loop(golden):
+    # A plain replay checks and counts the frames that match without events in compiled code
+    # (codec.checked_run); one shown to on_frame goes frame by frame: the same summary.
+    shown = []
+    assert _summary(golden) == _summary(golden, on_frame=shown.append)
+    assert len(shown) == Recording(golden).frame_count
+
+
+@pytest.mark.parametrize("at", [0, 59, 60, 61, 200])
+def test_a_divergence_inside_a_batch_is_reported_as_frame_by_frame(tmp_path, at):
+    # A frame's transforms one ulp off, at a batch's first, last or a middle frame: the
+    # compiled run stops there, and the report and the counts are the frame-by-frame loop's.
+    import json
+    import math
+
+    from mcap_edit import copy_recording
+
+    from vade_replay import codec
+
+    def edit(topic: str, index: int, data: bytes) -> bytes:
+        if topic == codec.FOXGLOVE_TOPIC and index == at:
+            doc = json.loads(data)
+            pose = doc["transforms"][0]["translation"]
+            pose["z"] = math.nextafter(pose["z"], math.inf)
+            return codec.dumps(doc)
+        return data
+
+    out = tmp_path / "off.mcap"
+    copy_recording(GOLDEN, out, edit)
+    fast, slow = _summary(out), _summary(out, on_frame=lambda f: None)
+    assert fast == slow
+    assert not fast["match"] and fast["first_divergence"]["frame"] == at
+    assert fast["frames"] == Recording(GOLDEN).frame_count

@@ -721,6 +721,31 @@ class FrameEncoder:
         return True
 
 
+def checked_run(encoder: FrameEncoder, batch: list[RecordedFrame], stepped: list[FrameRecord],
+                start: int, add: Callable[[FrameRecord], None]) -> tuple[int, int, Any]:
+    """A plain replay's check of frames ``start``, ``start + 1``, ... of a batch (the frames
+    read, ``batch``, and what they stepped to, ``stepped``) as long as each matches its
+    recording (``encoder.check``) and has no events: each such frame is given to ``add``
+    (the analysis). Returns the index of the first frame that did not (``len(stepped)``
+    where all did), the messages checked in the frames before it, and that frame's check
+    (None: it matched, with events to see to; else ours, as ``check`` returns them): the
+    caller sees to that frame, already checked, as to any other. Compiled: the loop of
+    ``replay.replay`` for what nearly every frame is, ~1 us a frame less interpreted."""
+    messages = 0
+    n = len(stepped)
+    i = start
+    while i < n:
+        recorded = batch[i].derived
+        replayed = stepped[i]
+        ours = encoder.check(replayed, recorded)
+        if ours is not None or replayed.events:
+            return i, messages, ours
+        add(replayed)
+        messages += len(recorded)
+        i += 1
+    return n, messages, None
+
+
 def _same_float(recorded: Any, ours: float) -> bool:
     """A recorded number is ours: a float, equal, and of the same sign (-0.0 is not 0.0)."""
     if type(recorded) is not float:
