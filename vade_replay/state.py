@@ -130,6 +130,35 @@ class PartState:
 
 
 @dataclass(slots=True)
+class BaseSample:
+    """The base's last left-hand sample that moved it: its time, where its centre of mass
+    was, and its rotation (``step._base_sample``). (A compiled class: one object where a
+    tuple of a tuple of floats was eleven.)"""
+
+    t_ns: int
+    cm: sp.Vec3
+    rotation: sp.Quat
+
+    def __init__(self, t_ns: int, cm: sp.Vec3, rotation: sp.Quat) -> None:
+        self.t_ns = t_ns
+        self.cm = cm
+        self.rotation = rotation
+
+
+@dataclass(slots=True)
+class BaseVelocity:
+    """The base's velocity (its centre of mass's) and angular velocity, world, between its
+    last two samples (``step._base_sample``)."""
+
+    velocity: sp.Vec3
+    omega: sp.Vec3
+
+    def __init__(self, velocity: sp.Vec3, omega: sp.Vec3) -> None:
+        self.velocity = velocity
+        self.omega = omega
+
+
+@dataclass(slots=True)
 class WorldState:
     """The whole simulation state after a frame."""
 
@@ -144,17 +173,18 @@ class WorldState:
     # The ``parts`` tuple ``awake`` was worked out for: a state copied with other parts
     # (``dataclasses.replace``) does not match it, and its awake set is worked out anew.
     awake_of: tuple | None
-    # The base's last left-hand sample that moved it, ``(t_ns, centre of mass, rotation)``,
-    # or None (none yet: its session pose before the hand took it is no sample, and that
-    # jump no motion), and its velocity and angular velocity since the sample before, or
-    # None (physics ``velocities: world``; ``step._base_sample``).
-    base_sample: tuple | None
-    base_velocity: tuple | None
+    # The base's last left-hand sample that moved it, or None (none yet: its session pose
+    # before the hand took it is no sample, and that jump no motion), and its velocity and
+    # angular velocity since the sample before, or None (physics ``velocities: world``;
+    # ``step._base_sample``).
+    base_sample: BaseSample | None
+    base_velocity: BaseVelocity | None
 
     def __init__(self, frame: int, time_ns: int, parts: tuple[PartState, ...],
                  base_pose: sp.Pose | None, grips: tuple[tuple[str, bool], ...],
                  awake: tuple[int, ...] | None = None, awake_of: tuple | None = None,
-                 base_sample: tuple | None = None, base_velocity: tuple | None = None) -> None:
+                 base_sample: BaseSample | None = None,
+                 base_velocity: BaseVelocity | None = None) -> None:
         self.frame = frame
         self.time_ns = time_ns
         self.parts = parts

@@ -21,7 +21,7 @@ from .events import ContactMade, Event, GrabRefused, ModeChanged, PartGrabbed, P
 from .frames import FrameRecord, PartSnapshot, TrackerFrame
 from .modes import Cause, Mode, check_transition
 from .scene import BOTH_HANDS, Body, Scene
-from .state import Held, OnBase, PartState, Resting, WorldState
+from .state import BaseSample, BaseVelocity, Held, OnBase, PartState, Resting, WorldState
 
 # Final: compiled, a C constant (a plain module name is a lookup in the module dict at every use).
 RIGHT: Final = "right_hand"
@@ -160,8 +160,8 @@ def step(scene: Scene, collision: CollisionWorld, state: WorldState,
     return new_state, tuple(f.events)
 
 
-def _base_sample(f: _Frame, base: Body, last: tuple | None,
-                 motion: tuple | None) -> tuple[tuple, tuple | None]:
+def _base_sample(f: _Frame, base: Body, last: BaseSample | None,
+                 motion: BaseVelocity | None) -> tuple[BaseSample, BaseVelocity | None]:
     """The base moved to a left-hand sample: that sample, and the base's velocity (its
     centre of mass's) and angular velocity since the sample before, over their times
     (physics ``velocities: world``; recorded, they drive nothing). None with no sample
@@ -173,16 +173,17 @@ def _base_sample(f: _Frame, base: Body, last: tuple | None,
     reads back; a device missing from a log's frame keeps its last sample, so the base
     holds there (0) and steps the gap's motion in the frame after, as simulated."""
     pose = f.base_pose
-    sample = (f.t_ns, pose.apply(base.center_of_mass), pose.rotation)  # type: ignore[union-attr]
+    t_ns = f.t_ns
+    sample = BaseSample(t_ns, pose.apply(base.center_of_mass), pose.rotation)  # type: ignore[union-attr]
     if last is None:
         return sample, None
-    t_last, cm_last, q_last = last[0], last[1], last[2]
-    if f.t_ns - t_last < velocity.MIN_INTERVAL_NS:
+    if t_ns - last.t_ns < velocity.MIN_INTERVAL_NS:
         return last, motion
-    dt = (f.t_ns - t_last) * 1e-9
-    v = sp.scale(sp.sub(sample[1], cm_last), 1.0 / dt)
-    w = sp.scale(sp.quat_to_rotvec(sp.quat_mul(sample[2], sp.quat_conj(q_last))), 1.0 / dt)
-    return sample, (v, w)
+    dt = (t_ns - last.t_ns) * 1e-9
+    v = sp.scale(sp.sub(sample.cm, last.cm), 1.0 / dt)
+    w = sp.scale(sp.quat_to_rotvec(sp.quat_mul(sample.rotation, sp.quat_conj(last.rotation))),
+                 1.0 / dt)
+    return sample, BaseVelocity(v, w)
 
 
 def _was_gripping(grips: tuple[tuple[str, bool], ...], device: str) -> bool:
@@ -1962,27 +1963,29 @@ def frame_record(scene: Scene, state: WorldState, inputs: TrackerFrame,
     parts, worked in instead of a copy and left holding this record's.
     """
     base = None
-    # The base's velocity (its centre of mass's) and angular velocity, and where its centre
-    # of mass is, for world velocities (physics ``velocities``; ``_base_sample``): None for
-    # ``relative``, or before its second sample.
-    moving: tuple[sp.Vec3, sp.Vec3, sp.Vec3] | None = None
+    # The base's velocity (its centre of mass's) and angular velocity, for world velocities
+    # (physics ``velocities``; ``_base_sample``): None for ``relative``, or before its
+    # second sample; and where its centre of mass is (with a velocity).
+    moving: BaseVelocity | None = None
+    cm_base = sp.ZERO3
     if scene.base is not None and state.base_pose is not None:
-        motion = state.base_velocity
-        if motion is not None:
-            moving = (motion[0], motion[1], state.base_pose.apply(scene.base.center_of_mass))
+        moving = state.base_velocity
+        if moving is not None:
+            cm_base = state.base_pose.apply(scene.base.center_of_mass)
         if previous is not None and previous[0].base_pose is state.base_pose \
-                and previous[0].base_velocity is motion and previous[1].base is not None:
+                and previous[0].base_velocity is moving and previous[1].base is not None:
             base = previous[1].base  # a base that did not move (fixed, or no left hand)
         else:
             base = PartSnapshot(scene.base.name,
                                 _STATIC_TEXT if scene.base_fixed else _INHAND_TEXT,
                                 state.base_pose.position, state.base_pose.rotation,
-                                sp.ZERO3 if moving is None else moving[0],
-                                sp.ZERO3 if moving is None else moving[1])
+                                sp.ZERO3 if moving is None else moving.velocity,
+                                sp.ZERO3 if moving is None else moving.omega)
     prev_awake = previous[0].awake_parts() if previous is not None else None
     awake = state.awake_parts()
     if previous is None or prev_awake is None or awake is None:
-        every = tuple(_snapshot_in(scene, i, p, moving) for i, p in enumerate(state.parts))
+        every = tuple(_snapshot_in(scene, i, p, moving, cm_base)
+                      for i, p in enumerate(state.parts))
         if scratch is not None:
             scratch[:] = every
         return FrameRecord(inputs, base, every, events)
@@ -1991,14 +1994,14 @@ def frame_record(scene: Scene, state: WorldState, inputs: TrackerFrame,
     parts, prev_parts = state.parts, prev_state.parts
     for index in set(prev_awake).union(awake):
         if parts[index] is not prev_parts[index]:
-            snaps[index] = _snapshot_in(scene, index, parts[index], moving)
+            snaps[index] = _snapshot_in(scene, index, parts[index], moving, cm_base)
     return FrameRecord(inputs, base, tuple(snaps), events)
 
 
-def _snapshot_in(scene: Scene, index: int, part: PartState,
-                 moving: tuple[sp.Vec3, sp.Vec3, sp.Vec3] | None) -> PartSnapshot:
+def _snapshot_in(scene: Scene, index: int, part: PartState, moving: BaseVelocity | None,
+                 cm_base: sp.Vec3) -> PartSnapshot:
     """``snapshot(part)``, with world velocities for a part on the base (``moving``: the
-    base's fitted velocity at its centre of mass, its angular velocity, and where its
+    base's velocity at its centre of mass and its angular velocity; ``cm_base``: where its
     centre of mass is): the base's motion at the part's centre of mass added to its motion
     relative to the base (zero at rest on it, or placed), as the schema's "world velocity"
     says; before ``velocities: world`` those were recorded as relative velocities, in world
@@ -2006,7 +2009,7 @@ def _snapshot_in(scene: Scene, index: int, part: PartState,
     mode = part.mode
     if moving is None or not (mode is ONBASESLIDE or mode is ONBASESTATIC or mode is PLACED):
         return snapshot(part)
-    v_base, w, cm_base = moving
+    v_base, w = moving.velocity, moving.omega
     cm = part.pose.apply(scene.parts[index].center_of_mass)
     v = sp.add(v_base, sp.cross(w, sp.sub(cm, cm_base)))
     return PartSnapshot(part.name, mode._value_, part.pose.position, part.pose.rotation,
