@@ -20,7 +20,7 @@ from .dynamics import free, onbase, velocity
 from .events import ContactMade, Event, GrabRefused, ModeChanged, PartGrabbed, PartReleased
 from .frames import FrameRecord, PartSnapshot, TrackerFrame
 from .modes import Cause, Mode, check_transition
-from .scene import BOTH_HANDS, Body, Scene
+from .scene import BOTH_HANDS, Body, Physics, Scene
 from .state import BaseSample, BaseVelocity, Held, OnBase, PartState, Resting, WorldState
 
 # Final: compiled, a C constant (a plain module name is a lookup in the module dict at every use).
@@ -40,6 +40,13 @@ _GRABBABLE: Final = (STATIC, INSPACE, ONBASESLIDE, ONBASESTATIC, PLACED)
 # What a tool attaches: what a hand could grab, and a part in a hand (handed over).
 _TOOL_GRABBABLE: Final = (*_GRABBABLE, INHAND)
 _HANDS: Final = (LEFT, RIGHT)
+def _zero3() -> sp.Vec3:
+    """``sp.ZERO3``, compiled a C struct made in place (``sp.ZERO3`` is a module attribute
+    looked up and its three floats unboxed at every use; mypyc 2.4 cannot keep a Final
+    tuple of floats: "value for final name ... was not set")."""
+    return (0.0, 0.0, 0.0)
+
+
 _CA_MAX_ITERATIONS: Final = 10_000
 _MIN_SUPPORT_COS: Final = 0.1
 
@@ -172,9 +179,9 @@ def _base_sample(f: _Frame, base: Body, last: BaseSample | None,
     window fit: the fit cost ~5 us a frame, a third of a step, for a velocity nothing
     reads back; a device missing from a log's frame keeps its last sample, so the base
     holds there (0) and steps the gap's motion in the frame after, as simulated."""
-    pose = f.base_pose
+    pose = cast(sp.Pose, f.base_pose)
     t_ns = f.t_ns
-    sample = BaseSample(t_ns, pose.apply(base.center_of_mass), pose.rotation)  # type: ignore[union-attr]
+    sample = BaseSample(t_ns, pose.apply(base.center_of_mass), pose.rotation)
     if last is None:
         return sample, None
     if t_ns - last.t_ns < velocity.MIN_INTERVAL_NS:
@@ -440,7 +447,7 @@ def _grab(f: _Frame, hand: str) -> None:
         mode, cause = INHAND, Cause.CAUGHT if part.mode is INSPACE else Cause.GRABBED
     cm = part.pose.apply(body.center_of_mass)
     held = Held(grip, hand_from_part, ((f.t_ns, cm, part.pose.rotation),), grasp)
-    f.change_mode(index, PartState(name, mode, part.pose, sp.ZERO3, sp.ZERO3, held), cause)
+    f.change_mode(index, PartState(name, mode, part.pose, _zero3(), _zero3(), held), cause)
     f.taken.append(index)
     f.events.append(PartGrabbed(frame, name, cause.value, grip))
 
@@ -578,7 +585,8 @@ def _release(f: _Frame, index: int, hand: str) -> None:
 
 # --- free flight and contact with the environment -------------------------------------
 
-def _flight_pose(f: _Frame, body: Body, start: free.Flight, t_ns: int):
+def _flight_pose(f: _Frame, body: Body, start: free.Flight,
+                 t_ns: int) -> tuple[free.Flight, sp.Vec3, sp.Vec3, sp.Pose]:
     physics = f.scene.physics
     stats = f.collision.stats
     stats["closed_form_evals"] += 1  # the CM's parabola
@@ -645,7 +653,7 @@ def _fly(f: _Frame, index: int) -> None:
     if base is not None and not flight.base_clear:
         # Just off the base: what it touched as it left (the whole base, with flight_grace
         # whole_base) is no obstacle until the part has separated from it.
-        base_from_part = f.base_pose.inverse().compose(pose_b)  # type: ignore[union-attr]
+        base_from_part = cast(sp.Pose, f.base_pose).inverse().compose(pose_b)
         if f.collision.distance_to_base(part.name, base_from_part) > 2.0 * physics.contact_tolerance:
             moved = replace(moved, motion=replace(flight, base_clear=True))
         if grace is None:
@@ -662,7 +670,7 @@ def _fly(f: _Frame, index: int) -> None:
     t_c, pose_c, other = contact
     if other is None:
         f.events.append(ContactMade(f.inputs.frame, part.name, Cause.HIT_BASE.value,
-                                    f.scene.base.name, t_c))  # type: ignore[union-attr]
+                                    cast(Body, f.scene.base).name, t_c))
         base_at_contact = base.at_time(t_c)  # type: ignore[union-attr]
         base_from_part = base_at_contact.inverse().compose(pose_c)
         # The flight's state at the contact: what a snap keeps and a graze flies on with.
@@ -714,7 +722,7 @@ def _without_push_into_base(f: _Frame, normal: sp.Vec3 | None, v: sp.Vec3) -> sp
     """The velocity less its component into the touched base face (normal in base axes)."""
     if normal is None:
         return v
-    n = sp.quat_rotate(f.base_pose.rotation, normal)  # type: ignore[union-attr]
+    n = sp.quat_rotate(cast(sp.Pose, f.base_pose).rotation, normal)
     into = sp.dot(v, n)
     return sp.sub(v, sp.scale(n, into)) if into < 0.0 else v
 
@@ -724,8 +732,8 @@ def _rest_on_base(f: _Frame, index: int, base_from_part: sp.Pose, up: sp.Vec3,
     """Lie on the base on no constraint, on the face with normal ``up`` (base axes): ride
     with it until the base turns so that gravity pulls the part off that face."""
     part = f.parts[index]
-    pose = f.base_pose.compose(base_from_part)  # type: ignore[union-attr]
-    f.change_mode(index, PartState(part.name, ONBASESTATIC, pose, sp.ZERO3, sp.ZERO3,
+    pose = cast(sp.Pose, f.base_pose).compose(base_from_part)
+    f.change_mode(index, PartState(part.name, ONBASESTATIC, pose, _zero3(), _zero3(),
                                    Resting(base_from_part, up)), cause)
 
 
@@ -775,7 +783,8 @@ def _base_path(f: _Frame, center: sp.Vec3, reach: float) -> _BasePath | None:
 
 def _time_of_contact(f: _Frame, body: Body, start: free.Flight, near: tuple[int, ...],
                      base: _BasePath | None, t_a: int, t_b: int, pose_a: sp.Pose,
-                     pose_b: sp.Pose, grace: tuple[int, ...] | None = None):
+                     pose_b: sp.Pose, grace: tuple[int, ...] | None = None
+                     ) -> tuple[int, sp.Pose, int | None] | None:
     """First time in [t_a, t_b] at which the part comes within the contact tolerance of an
     environment object or of the (moving) base part: ``(time, pose, index)``, with index
     ``None`` for the base, or ``None`` when there is no contact. With ``grace`` the base
@@ -795,7 +804,7 @@ def _time_of_contact(f: _Frame, body: Body, start: free.Flight, near: tuple[int,
     else:
         omega_max = free.max_angular_speed(start.momentum_principal, body.principal_moments)
 
-    def distance(t: int, pose: sp.Pose):
+    def distance(t: int, pose: sp.Pose) -> tuple[float, int | None]:
         d, which = (f.collision.distance_to_environment(body.name, pose, near) if near
                     else (float("inf"), -1))
         if base is not None:
@@ -862,7 +871,7 @@ _PASS_REACH: Final = 20.0
 
 
 def _to_base(f: _Frame, world: sp.Vec3) -> sp.Vec3:
-    return sp.quat_rotate(sp.quat_conj(f.base_pose.rotation), world)  # type: ignore[union-attr]
+    return sp.quat_rotate(sp.quat_conj(cast(sp.Pose, f.base_pose).rotation), world)
 
 
 def _axis(mate: cn.Mate) -> sp.Vec3 | None:
@@ -897,7 +906,7 @@ def _drive(f: _Frame, body: Body, mate: cn.Mate, m: OnBase) -> tuple[bool, bool,
 def _release_on_base(f: _Frame, index: int, hand: str) -> bool:
     """Release onto the base: at the final pose, or onto the first recognised constraint."""
     part = f.parts[index]
-    base_from_part = f.base_pose.inverse().compose(part.pose)  # type: ignore[union-attr]
+    base_from_part = cast(sp.Pose, f.base_pose).inverse().compose(part.pose)
     return _onto_base(f, index, base_from_part, hand, part.linear_velocity,
                       part.angular_velocity)
 
@@ -942,7 +951,7 @@ def _onto_base(f: _Frame, index: int, base_from_part: sp.Pose, hand: str | None,
                 snapped = sp.Pose(sp.add(snapped.position, sp.scale(mate.slide_dirs[0], toward)),
                                   snapped.rotation)
         motion = OnBase(mate_index, snapped, zeros, zeros,
-                        cm_offset=cn.cm_offset_base(mate, snapped) if mate.turn else sp.ZERO3)
+                        cm_offset=cn.cm_offset_base(mate, snapped) if mate.turn else _zero3())
         if hand is None and not _lands_clear(f, body, mate, motion):
             continue  # met the base elsewhere than on this constraint's feature
         if cn.at_final_pose(assembly, snapped):
@@ -951,15 +960,15 @@ def _onto_base(f: _Frame, index: int, base_from_part: sp.Pose, hand: str | None,
         lifted, slides, turns = _drive(f, body, mate, motion)
         if lifted:
             continue  # gravity pulls it off this plane: not a support
-        pose = f.base_pose.compose(snapped)  # type: ignore[union-attr]
-        v_on, w_on = sp.ZERO3, sp.ZERO3
+        pose = cast(sp.Pose, f.base_pose).compose(snapped)
+        v_on, w_on = _zero3(), _zero3()
         if f.scene.physics.snap_velocity == "along_constraint":
             motion = _kept_rates(f, body, mate, motion, v, w, slides, turns)
             if motion.angle_rate != 0.0 or any(r != 0.0 for r in motion.slide_rate):
                 slides = True  # it moves on along the constraint from the snap
                 v_rel, w_rel = _relative_rates(body, mate, motion, motion.slide_rate, 0.0,
                                                motion.angle_rate)
-                q = f.base_pose.rotation  # type: ignore[union-attr]
+                q = cast(sp.Pose, f.base_pose).rotation
                 v_on, w_on = sp.quat_rotate(q, v_rel), sp.quat_rotate(q, w_rel)
         # (``zero``: the snap is an inelastic contact, the part at rest relative to the base.)
         mode = ONBASESLIDE if (slides or turns) else ONBASESTATIC
@@ -993,7 +1002,7 @@ def _kept_rates(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, v: sp.Vec3,
     static friction too, not sliding for a frame or off the plate."""
     cm = m.base_from_snap.apply(body.center_of_mass)
     v_base, w_base = _base_motion(f, cm)
-    q_inv = sp.quat_conj(f.base_pose.rotation)  # type: ignore[union-attr]
+    q_inv = sp.quat_conj(cast(sp.Pose, f.base_pose).rotation)
     v_rel = sp.quat_rotate(q_inv, sp.sub(v, v_base))
     w_rel = sp.quat_rotate(q_inv, sp.sub(w, w_base))
     rates = tuple(sp.dot(v_rel, e) for e in mate.slide_dirs)
@@ -1051,9 +1060,9 @@ def _lands_clear(f: _Frame, body: Body, mate: cn.Mate, m: OnBase) -> bool:
         return False
     tol = f.scene.physics.contact_tolerance
     if mate.kind == "axis":
-        mode, lift = SKIP_COAXIAL, sp.ZERO3
+        mode, lift = SKIP_COAXIAL, _zero3()
     else:
-        mode, lift = SKIP_COPLANAR, sp.ZERO3
+        mode, lift = SKIP_COPLANAR, _zero3()
         for n in mate.base_dirs:
             lift = sp.add(lift, sp.scale(n, 2.0 * tol))
     return f.collision.base_distance(body.name, m.mate, m.base_from_snap, mode, lift=lift) \
@@ -1062,11 +1071,11 @@ def _lands_clear(f: _Frame, body: Body, mate: cn.Mate, m: OnBase) -> bool:
 
 def _place(f: _Frame, index: int, cause: Cause, *, hand: str | None = None) -> None:
     part = f.parts[index]
-    final = f.scene.parts[index].assembly.final_pose  # type: ignore[union-attr]
+    final = cast(Assembly, f.scene.parts[index].assembly).final_pose
     if hand is not None:
         f.events.append(PartReleased(f.inputs.frame, part.name, cause.value, hand,
                                      part.linear_velocity, part.angular_velocity))
-    pose = f.base_pose.compose(cast(sp.Pose, final))  # type: ignore[union-attr]
+    pose = cast(sp.Pose, f.base_pose).compose(cast(sp.Pose, final))
     f.change_mode(index, PartState(part.name, PLACED, pose), cause)
 
 
@@ -1074,20 +1083,21 @@ def _base_motion(f: _Frame, point_base: sp.Vec3) -> tuple[sp.Vec3, sp.Vec3]:
     """World velocity of a base-fixed point and the base's angular velocity, over the frame."""
     dt = f.dt_s
     if f.base_prev is None or dt <= 0.0:
-        return sp.ZERO3, sp.ZERO3
-    v = sp.scale(sp.sub(f.base_pose.apply(point_base), f.base_prev.apply(point_base)),  # type: ignore[union-attr]
-                 1.0 / dt)
-    rel = sp.quat_mul(f.base_pose.rotation, sp.quat_conj(f.base_prev.rotation))  # type: ignore[union-attr]
+        return _zero3(), _zero3()
+    now, before = cast(sp.Pose, f.base_pose), f.base_prev
+    v = sp.scale(sp.sub(now.apply(point_base), before.apply(point_base)), 1.0 / dt)
+    rel = sp.quat_mul(now.rotation, sp.quat_conj(before.rotation))
     return v, sp.scale(sp.quat_to_rotvec(rel), 1.0 / dt)
 
 
-def _relative_rates(body: Body, mate: cn.Mate, m: OnBase, slide_rate, angle, angle_rate):
+def _relative_rates(body: Body, mate: cn.Mate, m: OnBase, slide_rate: tuple[float, ...],
+                    angle: float, angle_rate: float) -> tuple[sp.Vec3, sp.Vec3]:
     """CM velocity and angular velocity relative to the base, in base axes."""
-    v = sp.ZERO3
+    v = _zero3()
     for rate, e in zip(slide_rate, mate.slide_dirs):
         v = sp.add(v, sp.scale(e, rate))
     if not mate.turn or angle_rate == 0.0:
-        return v, sp.ZERO3
+        return v, _zero3()
     u = mate.base_dirs[0]
     r = sp.quat_rotate(sp.quat_unit_axis_angle(mate.unit_axis, angle), m.cm_offset)
     return sp.add(v, sp.scale(sp.cross(u, r), angle_rate)), sp.scale(u, angle_rate)
@@ -1107,7 +1117,7 @@ def _leave(f: _Frame, index: int, cause: Cause, rel: sp.Pose, v_rel: sp.Vec3,
         # The base's velocity at that instant of its path (linear in position, slerp in
         # rotation: constant w), not its average over the frame, which differs on a
         # turning base by w x w r dt |at - 1/2| (a review: 6 mm after 0.4 s at 2 rad/s).
-        v_origin = sp.scale(sp.sub(f.base_pose.position, f.base_prev.position),  # type: ignore[union-attr]
+        v_origin = sp.scale(sp.sub(cast(sp.Pose, f.base_pose).position, f.base_prev.position),
                             1.0 / f.dt_s)
         v_base = sp.add(v_origin, sp.cross(w_base, sp.quat_rotate(
             base.rotation, rel.apply(body.center_of_mass))))  # type: ignore[union-attr]
@@ -1140,13 +1150,13 @@ def _check_resting_on_base(f: _Frame) -> None:
                 return sp.dot(g, up) > 0.0
             if pulls_off(_to_base(f, f.scene.physics.gravity)):
                 at = _lift_fraction(f, f.scene.physics.gravity, pulls_off) if located else 1.0
-                _leave(f, index, Cause.LIFTED_OFF, rest.base_from_part, sp.ZERO3, sp.ZERO3,
+                _leave(f, index, Cause.LIFTED_OFF, rest.base_from_part, _zero3(), _zero3(),
                        at=at)
                 if at < 1.0:
                     _fly(f, index)
             continue
         m: OnBase = part.motion  # type: ignore[assignment]
-        mate = body.assembly.mates[m.mate]  # type: ignore[union-attr]
+        mate = cast(Assembly, body.assembly).mates[m.mate]
         lifted, slides, turns = _drive(f, body, mate, m)
         if lifted and located and mate.kind != "axis":
             # As gravity turns to pull it off the plane the normal load goes to zero, so
@@ -1155,7 +1165,7 @@ def _check_resting_on_base(f: _Frame) -> None:
             f.change_mode(index, replace(part, mode=ONBASESLIDE), Cause.FRICTION_BROKEN)
         elif lifted:
             rel = cn.relative_pose(mate, m.base_from_snap, m.slide, m.angle)
-            _leave(f, index, Cause.LIFTED_OFF, rel, sp.ZERO3, sp.ZERO3)
+            _leave(f, index, Cause.LIFTED_OFF, rel, _zero3(), _zero3())
         elif slides or turns:
             f.change_mode(index, replace(part, mode=ONBASESLIDE), Cause.FRICTION_BROKEN)
 
@@ -1172,11 +1182,11 @@ def _carry_with_base(f: _Frame) -> None:
                 rel = m.base_from_part
             else:
                 on = cast(OnBase, m)
-                mate = f.scene.parts[index].assembly.mates[on.mate]  # type: ignore[union-attr]
+                mate = cast(Assembly, f.scene.parts[index].assembly).mates[on.mate]
                 rel = cn.relative_pose(mate, on.base_from_snap, on.slide, on.angle)
-            f.parts[index] = part.moved(f.base_pose.compose(rel), sp.ZERO3, sp.ZERO3, m)
+            f.parts[index] = part.moved(f.base_pose.compose(rel), _zero3(), _zero3(), m)
         elif part.mode is PLACED:
-            final = f.scene.parts[index].assembly.final_pose  # type: ignore[union-attr]
+            final = cast(Assembly, f.scene.parts[index].assembly).final_pose
             if final is not None:
                 f.parts[index] = part.moved(f.base_pose.compose(final), part.linear_velocity,
                                             part.angular_velocity, part.motion)
@@ -1202,8 +1212,8 @@ def _clear_blocks(f: _Frame, body: Body, mate: cn.Mate, m: OnBase) -> OnBase:
     return m
 
 
-def _static_hold(mate: cn.Mate, m: OnBase, physics, turn_path: onbase.GravityPath | None,
-                 q0: sp.Quat, q1: sp.Quat) -> bool:
+def _static_hold(mate: cn.Mate, m: OnBase, physics: Physics,
+                 turn_path: onbase.GravityPath | None, q0: sp.Quat, q1: sp.Quat) -> bool:
     """At rest and held by static friction all frame long, whatever the sub-steps sample:
     then sliding would leave the coordinates exactly as they are, and is skipped.
 
@@ -1243,13 +1253,13 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
     body = f.scene.parts[index]
     physics = f.scene.physics
     m: OnBase = part.motion  # type: ignore[assignment]
-    mate = body.assembly.mates[m.mate]  # type: ignore[union-attr]
+    mate = cast(Assembly, body.assembly).mates[m.mate]
     dt = f.dt_s
     m = _clear_blocks(f, body, mate, m)
     x1, v1, a1, w1 = m.slide, m.slide_rate, m.angle, m.angle_rate
     if dt > 0.0:
-        q0 = (f.base_prev or f.base_pose).rotation  # type: ignore[union-attr]
-        q1 = f.base_pose.rotation  # type: ignore[union-attr]
+        q0 = cast(sp.Pose, f.base_prev or f.base_pose).rotation
+        q1 = cast(sp.Pose, f.base_pose).rotation
         turn_path = onbase.GravityPath(physics.gravity_rotation, q0, q1) if mate.turn else None
         if mate.slide_dirs and not (_STATIC_HOLD and _static_hold(mate, m, physics, turn_path,
                                                                  q0, q1)):
@@ -1287,8 +1297,8 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
                     if torque <= mate.holding_torque:
                         w1 = 0.0
     if not (_finite(x1) and _finite(v1) and _finite((a1, w1))):
-        f.change_mode(index, replace(part, mode=ONBASESTATIC, linear_velocity=sp.ZERO3,
-                                     angular_velocity=sp.ZERO3,
+        f.change_mode(index, replace(part, mode=ONBASESTATIC, linear_velocity=_zero3(),
+                                     angular_velocity=_zero3(),
                                      motion=replace(m, slide_rate=tuple(0.0 for _ in v1),
                                                     angle_rate=0.0)), Cause.NUMERICAL_FAULT)
         return
@@ -1374,16 +1384,16 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
         _place(f, index, Cause.REACHED_FINAL_POSE)
         return
     v_rel, w_rel = _relative_rates(body, mate, new, new.slide_rate, new.angle, new.angle_rate)
-    q = f.base_pose.rotation  # type: ignore[union-attr]
-    moved = part.moved(f.base_pose.compose(rel), sp.quat_rotate(q, v_rel),  # type: ignore[union-attr]
+    q = cast(sp.Pose, f.base_pose).rotation
+    moved = part.moved(cast(sp.Pose, f.base_pose).compose(rel), sp.quat_rotate(q, v_rel),
                        sp.quat_rotate(q, w_rel), new)
     at_rest = new.angle_rate == 0.0 and all(v == 0.0 for v in new.slide_rate)
     if at_rest:
         _, slides, turns = _drive(f, body, mate, new)
         if not (slides or turns):
             cause = Cause.BLOCKED if blocked is not None else Cause.FRICTION_HELD
-            f.change_mode(index, replace(moved, mode=ONBASESTATIC, linear_velocity=sp.ZERO3,
-                                         angular_velocity=sp.ZERO3), cause)
+            f.change_mode(index, replace(moved, mode=ONBASESTATIC, linear_velocity=_zero3(),
+                                         angular_velocity=_zero3()), cause)
             return
     f.parts[index] = moved
 
@@ -1391,7 +1401,7 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
 def _blocked_event(f: _Frame, name: str, lam: float) -> None:
     """The base stopped the part at the fraction ``lam`` of the frame."""
     f.events.append(ContactMade(f.inputs.frame, name, Cause.BLOCKED.value,
-                                f.scene.base.name,  # type: ignore[union-attr]
+                                cast(Body, f.scene.base).name,
                                 f.t_prev_ns + int(lam * (f.t_ns - f.t_prev_ns))))
 
 
@@ -1546,7 +1556,8 @@ def _sweep_from_contact(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, at, spe
     return None  # out of steps (skimming something): the end's check decides
 
 
-def _sweep(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, x1: tuple[float, ...], a1: float):
+def _sweep(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, x1: tuple[float, ...],
+           a1: float) -> tuple[OnBase, tuple[float, bool, bool] | None]:
     """SKIP_COPLANAR / SKIP_COAXIAL along the frame's path in coordinates, by conservative
     advancement: at distance d, no point of the part moves more than ``|dx| + rho |da|``
     per unit of the path parameter, so a step of ``(d - tol/2) / that`` never enters the
@@ -1562,10 +1573,10 @@ def _sweep(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, x1: tuple[float, ...
         if reach < m.clearance - tol:
             return m, None
     if mate.kind == "axis":
-        mode, lift = SKIP_COAXIAL, sp.ZERO3
+        mode, lift = SKIP_COAXIAL, _zero3()
     else:
         mode = SKIP_COPLANAR
-        lift = sp.ZERO3
+        lift = _zero3()
         for n in mate.base_dirs:
             lift = sp.add(lift, sp.scale(n, 2.0 * tol))
 
@@ -1818,8 +1829,8 @@ def _lift_off(f: _Frame, index: int, body: Body, mate: cn.Mate, m: OnBase,
     physics = f.scene.physics
     xl, vl = m.slide, m.slide_rate
     if lift > 0.0:
-        q0 = (f.base_prev or f.base_pose).rotation  # type: ignore[union-attr]
-        q_lift = sp.slerp(q0, f.base_pose.rotation, lift)  # type: ignore[union-attr]
+        q0 = cast(sp.Pose, f.base_prev or f.base_pose).rotation
+        q_lift = sp.slerp(q0, cast(sp.Pose, f.base_pose).rotation, lift)
         steps = onbase.substeps(lift * f.dt_s, physics.slide_step_s)
         f.collision.stats["closed_form_evals" if physics.slide_integrator in (
             "analytic", "analytic4") else "integrator_steps"] += steps
@@ -1851,8 +1862,8 @@ def _lift_off_fraction(f: _Frame, mate: cn.Mate) -> float | None:
 def _lift_fraction(f: _Frame, gravity: sp.Vec3, lifted) -> float:
     """The first fraction of the frame at which ``lifted(gravity in base axes)`` holds, given
     that it holds at the frame's end: bisected on the frame's gravity path (no geometry)."""
-    q0 = (f.base_prev or f.base_pose).rotation  # type: ignore[union-attr]
-    path = onbase.GravityPath(gravity, q0, f.base_pose.rotation)  # type: ignore[union-attr]
+    q0 = cast(sp.Pose, f.base_prev or f.base_pose).rotation
+    path = onbase.GravityPath(gravity, q0, cast(sp.Pose, f.base_pose).rotation)
     lo, hi = 0.0, 1.0
     if lifted(path.at(0.0)):
         return 0.0
@@ -1967,7 +1978,7 @@ def frame_record(scene: Scene, state: WorldState, inputs: TrackerFrame,
     # (physics ``velocities``; ``_base_sample``): None for ``relative``, or before its
     # second sample; and where its centre of mass is (with a velocity).
     moving: BaseVelocity | None = None
-    cm_base = sp.ZERO3
+    cm_base = _zero3()
     if scene.base is not None and state.base_pose is not None:
         moving = state.base_velocity
         if moving is not None:
@@ -1979,8 +1990,8 @@ def frame_record(scene: Scene, state: WorldState, inputs: TrackerFrame,
             base = PartSnapshot(scene.base.name,
                                 _STATIC_TEXT if scene.base_fixed else _INHAND_TEXT,
                                 state.base_pose.position, state.base_pose.rotation,
-                                sp.ZERO3 if moving is None else moving.velocity,
-                                sp.ZERO3 if moving is None else moving.omega)
+                                _zero3() if moving is None else moving.velocity,
+                                _zero3() if moving is None else moving.omega)
     prev_awake = previous[0].awake_parts() if previous is not None else None
     awake = state.awake_parts()
     if previous is None or prev_awake is None or awake is None:
