@@ -134,8 +134,7 @@ def _writers():
 
 def _one_part(values) -> tuple:
     """``frame_messages``' arguments for one part (the base) of these 13 numbers."""
-    return (orjson.dumps(list(values)), (b'"p"',), (b'"INSPACE"',), True,
-            b',"frame":3,"parts":[', b'],"time_ns":7}', b'{"nsec":7,"sec":0}')
+    return (orjson.dumps(list(values)), [b'"p"'], [b'"INSPACE"'], True, 0, 3, 7)
 
 
 def test_the_frame_writers_write_json_s_numbers():
@@ -217,13 +216,50 @@ def test_the_frame_writers_write_the_reference_s_messages():
         items = parts if b is None else (b, *parts)
         numbers = orjson.dumps([x for s in items for v in (s.angular_velocity,
                                 s.linear_velocity, s.position, s.rotation_xyzw) for x in v])
-        args = (numbers, tuple(json.dumps(s.name).encode() for s in items),
-                tuple(json.dumps(s.mode).encode() for s in items), b is not None,
-                b',"frame":9,"parts":[', b'],"time_ns":1500000001}',
-                b'{"nsec":500000001,"sec":1}')
+        args = (numbers, [json.dumps(s.name).encode() for s in items],
+                [json.dumps(s.mode).encode() for s in items], b is not None, 0, 9,
+                1_500_000_001)
         reference = [m for _, m in codec.derived_messages(record)]
         for writer in _writers():
             assert list(writer(*args)) == reference, writer
+
+
+@pytest.mark.parametrize("complete", [0, 1, 2])
+@pytest.mark.parametrize("frame, time_ns", [(0, 0), (3, 999_999_999), (17, 10**9),
+                                            (2**63 - 1, 2**64 - 1), (123456, 3_600_000_000_001)])
+def test_the_frame_writers_write_the_frame_s_number_time_and_completeness(complete, frame,
+                                                                           time_ns):
+    """The texts around the parts (``"complete"``, the frame, the time and the transforms'
+    stamp) are written from the frame's integers, by both writers alike, as
+    ``derived_messages`` writes them: to the largest frame and time MCAP holds."""
+    part = PartSnapshot("p", "INSPACE", (1.0, 2.0, 3.0), (0.0, 0.0, 0.0, 1.0), (0.5,) * 3,
+                        (0.25,) * 3)
+    record = FrameRecord(TrackerFrame(frame, time_ns, ()), part, ())
+    if complete == 0:
+        reference = codec.derived_messages(record)
+    else:
+        # A changed-encoded frame: a key frame lists every part ("complete": true); one
+        # whose parts did not move lists none but the base ("complete": false).
+        reference = codec.derived_messages(
+            record, parts=codec.PARTS_CHANGED, previous_parts=record.parts,
+            previous_time_ns=time_ns if complete == 1 else None)
+    texts = [m for _, m in reference]
+    assert (b'"complete":true' in texts[0]) == (complete == 2)
+    assert (b'"complete":false' in texts[0]) == (complete == 1)
+    args = (orjson.dumps([0.25] * 3 + [0.5] * 3 + [1.0, 2.0, 3.0, 0.0, 0.0, 0.0, 1.0]),
+            [b'"p"'], [b'"INSPACE"'], True, complete, frame, time_ns)
+    for writer in _writers():
+        assert list(writer(*args)) == texts, writer
+
+
+@pytest.mark.parametrize("complete, frame, time_ns", [
+    (3, 1, 1), (-1, 1, 1), (0, -1, 1), (0, 2**63, 1), (0, 1, -1), (0, 1, 2**64),
+    (0, 1.0, 1), (0, 1, 1.0), (True, 1, 1)])
+def test_the_frame_writers_decline_a_frame_they_cannot_write_alike(complete, frame, time_ns):
+    """Anything but a non-negative 64-bit frame and time, and a known completeness: None
+    from both, and the frame is written the slower way (``json``, and its errors)."""
+    args = (orjson.dumps([0.5] * 13), [b'"p"'], [b'"INSPACE"'], True, complete, frame, time_ns)
+    assert [w(*args) for w in _writers()] == [None] * len(_writers())
 
 
 def test_number_texts_are_json_s_for_random_bit_patterns():

@@ -195,7 +195,8 @@ write_part(writer *w, const char *s, const token *tk, PyObject *name, PyObject *
 }
 
 static void
-write_transform(writer *w, const char *s, const token *tk, PyObject *name, PyObject *stamp)
+write_transform(writer *w, const char *s, const token *tk, PyObject *name, const char *stamp,
+                Py_ssize_t stamp_n)
 {
     /* {"child_frame_id":N,"parent_frame_id":"world","rotation":{"w":12,"x":9,"y":10,
         "z":11},"timestamp":STAMP,"translation":{"x":6,"y":7,"z":8}} */
@@ -205,90 +206,133 @@ write_transform(writer *w, const char *s, const token *tk, PyObject *name, PyObj
     put_token(w, s, tk, 12); PUT(w, ",\"x\":"); put_token(w, s, tk, 9);
     PUT(w, ",\"y\":"); put_token(w, s, tk, 10); PUT(w, ",\"z\":"); put_token(w, s, tk, 11);
     PUT(w, "},\"timestamp\":");
-    put_bytes(w, stamp);
+    put(w, stamp, stamp_n);
     PUT(w, ",\"translation\":{\"x\":");
     put_token(w, s, tk, 6); PUT(w, ",\"y\":"); put_token(w, s, tk, 7);
     PUT(w, ",\"z\":"); put_token(w, s, tk, 8);
     PUT(w, "}}");
 }
 
+/* The frame's own texts around its parts: what /parts has between the base and the first
+   part's object (up to and with the "[" of "parts"), after the last part's, and the
+   transforms' timestamp object. */
+typedef struct {
+    char middle[64];
+    Py_ssize_t middle_n;
+    char end[48];
+    Py_ssize_t end_n;
+    char stamp[64];
+    Py_ssize_t stamp_n;
+} frame_texts;
+
 static void
 write_messages(writer *parts, writer *transforms, const char *scratch, const token *tokens,
-               PyObject *names, PyObject *modes, int with_base, PyObject *middle,
-               PyObject *end, PyObject *stamp)
+               PyObject *names, PyObject *modes, int with_base, const frame_texts *ft)
 {
-    Py_ssize_t k = PyTuple_GET_SIZE(names), i;
+    Py_ssize_t k = PyList_GET_SIZE(names), i;
     PUT(parts, "{\"base\":");
     if (with_base)
-        write_part(parts, scratch, tokens, PyTuple_GET_ITEM(names, 0),
-                   PyTuple_GET_ITEM(modes, 0));
+        write_part(parts, scratch, tokens, PyList_GET_ITEM(names, 0),
+                   PyList_GET_ITEM(modes, 0));
     else
         PUT(parts, "null");
-    put_bytes(parts, middle);
+    put(parts, ft->middle, ft->middle_n);
     for (i = with_base ? 1 : 0; i < k; i++) {
         if (i > (with_base ? 1 : 0))
             PUT(parts, ",");
-        write_part(parts, scratch, tokens + NUMBERS_PER_PART * i, PyTuple_GET_ITEM(names, i),
-                   PyTuple_GET_ITEM(modes, i));
+        write_part(parts, scratch, tokens + NUMBERS_PER_PART * i, PyList_GET_ITEM(names, i),
+                   PyList_GET_ITEM(modes, i));
     }
-    put_bytes(parts, end);
+    put(parts, ft->end, ft->end_n);
     PUT(transforms, "{\"transforms\":[");
     for (i = 0; i < k; i++) {
         if (i > 0)
             PUT(transforms, ",");
         write_transform(transforms, scratch, tokens + NUMBERS_PER_PART * i,
-                        PyTuple_GET_ITEM(names, i), stamp);
+                        PyList_GET_ITEM(names, i), ft->stamp, ft->stamp_n);
     }
     PUT(transforms, "]}");
 }
 
 static int
-all_bytes(PyObject *tuple)
+all_bytes(PyObject *list)
 {
-    for (Py_ssize_t i = 0; i < PyTuple_GET_SIZE(tuple); i++)
-        if (!PyBytes_CheckExact(PyTuple_GET_ITEM(tuple, i)))
+    for (Py_ssize_t i = 0; i < PyList_GET_SIZE(list); i++)
+        if (!PyBytes_CheckExact(PyList_GET_ITEM(list, i)))
             return 0;
     return 1;
 }
 
-/* frame_messages(numbers, names, modes, with_base, middle, end, stamp)
+/* The frame's texts from its frame number, time and "complete" (0: none, the full
+   encoding's frames; 1: false; 2: true); 0, or -1 where frame or time is not a
+   non-negative integer of 64 bits (the caller then writes the frame the slower way). */
+static int
+make_frame_texts(frame_texts *ft, PyObject *complete_obj, PyObject *frame_obj,
+                 PyObject *time_obj)
+{
+    static const char *completes[] = {"", ",\"complete\":false", ",\"complete\":true"};
+    long complete;
+    long long frame;
+    unsigned long long t;
+    if (!PyLong_CheckExact(complete_obj) || !PyLong_CheckExact(frame_obj)
+            || !PyLong_CheckExact(time_obj))
+        return -1;
+    complete = PyLong_AsLong(complete_obj);
+    frame = PyLong_AsLongLong(frame_obj);
+    if (PyErr_Occurred() || complete < 0 || complete > 2 || frame < 0) {
+        PyErr_Clear();
+        return -1;
+    }
+    t = PyLong_AsUnsignedLongLong(time_obj);
+    if (PyErr_Occurred()) {  /* negative, or past 64 bits */
+        PyErr_Clear();
+        return -1;
+    }
+    ft->middle_n = snprintf(ft->middle, sizeof ft->middle, "%s,\"frame\":%lld,\"parts\":[",
+                            completes[complete], frame);
+    ft->end_n = snprintf(ft->end, sizeof ft->end, "],\"time_ns\":%llu}", t);
+    ft->stamp_n = snprintf(ft->stamp, sizeof ft->stamp, "{\"nsec\":%llu,\"sec\":%llu}",
+                           t % 1000000000ULL, t / 1000000000ULL);
+    return 0;
+}
+
+/* frame_messages(numbers, names, modes, with_base, complete, frame, time_ns)
      -> (parts, transforms) | None
 
    numbers: orjson's text of a list of 13 numbers a part shown (angular velocity, linear
    velocity, position, rotation xyzw), the base's first where with_base; names and modes:
-   tuples of bytes, each part's quoted as json quotes it; middle: the /parts text between
-   the base and the first part's object, up to and with the "[" of "parts"; end: from the
-   "]" after the last part to the closing brace; stamp: the transforms' timestamp object. */
+   lists of bytes, each part's quoted as json quotes it; complete: 0 (the full encoding:
+   no "complete" key), 1 (false) or 2 (true); frame and time_ns: the frame's number and
+   time (non-negative integers of 64 bits). */
 static PyObject *
 frame_messages(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
 {
-    PyObject *numbers, *names, *modes, *middle, *end, *stamp, *result = Py_None;
+    PyObject *numbers, *names, *modes, *result = Py_None;
     Py_ssize_t k, count, n, i, start, expected;
     const char *text;
     char *scratch = NULL;
     token *tokens = NULL;
+    frame_texts ft;
     int with_base;
     if (nargs != 7) {
         PyErr_SetString(PyExc_TypeError, "frame_messages takes 7 arguments");
         return NULL;
     }
     numbers = args[0]; names = args[1]; modes = args[2];
-    middle = args[4]; end = args[5]; stamp = args[6];
     with_base = PyObject_IsTrue(args[3]);
     if (with_base < 0)
         return NULL;
-    if (!PyBytes_CheckExact(numbers) || !PyTuple_CheckExact(names)
-            || !PyTuple_CheckExact(modes) || !PyBytes_CheckExact(middle)
-            || !PyBytes_CheckExact(end) || !PyBytes_CheckExact(stamp)) {
-        PyErr_SetString(PyExc_TypeError, "frame_messages: bytes and tuples of bytes expected");
+    if (!PyBytes_CheckExact(numbers) || !PyList_CheckExact(names)
+            || !PyList_CheckExact(modes)) {
+        PyErr_SetString(PyExc_TypeError, "frame_messages: bytes and lists of bytes expected");
         return NULL;
     }
-    k = PyTuple_GET_SIZE(names);
-    if (PyTuple_GET_SIZE(modes) != k || !all_bytes(names) || !all_bytes(modes)) {
+    k = PyList_GET_SIZE(names);
+    if (PyList_GET_SIZE(modes) != k || !all_bytes(names) || !all_bytes(modes)) {
         PyErr_SetString(PyExc_TypeError, "frame_messages: names and modes: bytes, as many");
         return NULL;
     }
-    if (k == 0 || (with_base && k < 1))
+    if (k == 0 || make_frame_texts(&ft, args[4], args[5], args[6]) < 0)
         Py_RETURN_NONE;
     expected = NUMBERS_PER_PART * k;
     text = PyBytes_AS_STRING(numbers);
@@ -327,7 +371,7 @@ frame_messages(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
     {
         writer pc = {NULL, 0}, tc = {NULL, 0};
         PyObject *parts, *transforms;
-        write_messages(&pc, &tc, scratch, tokens, names, modes, with_base, middle, end, stamp);
+        write_messages(&pc, &tc, scratch, tokens, names, modes, with_base, &ft);
         parts = PyBytes_FromStringAndSize(NULL, pc.n);
         transforms = PyBytes_FromStringAndSize(NULL, tc.n);
         if (parts == NULL || transforms == NULL) {
@@ -338,8 +382,7 @@ frame_messages(PyObject *self, PyObject *const *args, Py_ssize_t nargs)
         }
         {
             writer pw = {PyBytes_AS_STRING(parts), 0}, tw = {PyBytes_AS_STRING(transforms), 0};
-            write_messages(&pw, &tw, scratch, tokens, names, modes, with_base, middle, end,
-                           stamp);
+            write_messages(&pw, &tw, scratch, tokens, names, modes, with_base, &ft);
         }
         result = PyTuple_Pack(2, parts, transforms);
         Py_DECREF(parts);

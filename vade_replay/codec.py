@@ -431,18 +431,25 @@ def _json_transform(t: list[bytes], name: bytes, stamp: bytes) -> bytes:
                      b',"translation":{"x":', t[6], b',"y":', t[7], b',"z":', t[8], b"}}"))
 
 
-def _frame_json_py(numbers: bytes, names: tuple, modes: tuple, with_base: bool,
-                   middle: bytes, end: bytes, stamp: bytes) -> tuple[bytes, bytes] | None:
+_COMPLETE_TEXTS: Final = ("", ',"complete":false', ',"complete":true')
+
+
+def _frame_json_py(numbers: bytes, names: list[bytes], modes: list[bytes], with_base: bool,
+                   complete: Any, frame: Any, time_ns: Any) -> tuple[bytes, bytes] | None:
     """A frame's /parts and /foxglove/transforms bytes from ``numbers``, orjson's text of
     the 13 numbers of each part shown (angular velocity, linear velocity, position, xyzw),
     the base's first ``with_base``; ``names`` and ``modes`` each part's, quoted as ``json``
-    quotes them; ``middle`` the /parts text after the base up to the "[" of its parts,
-    ``end`` after their "]", ``stamp`` the transforms' timestamp. None where a number is not
-    covered (``_json_number_py``) or the text is not 13 numbers a part. The reference of
-    ``_framejson.frame_messages``, which ``FrameEncoder`` runs where it is built."""
+    quotes them; ``complete`` 0 (the full encoding: no such key), 1 (false) or 2 (true);
+    ``frame`` and ``time_ns`` the frame's. None where a number is not covered
+    (``_json_number_py``), the text is not 13 numbers a part, or the frame or time is not
+    a non-negative integer of 64 bits. The reference of ``_framejson.frame_messages``,
+    which ``FrameEncoder`` runs where it is built."""
     k = len(names)
     if k == 0 or len(numbers) < 2 or not numbers.startswith(b"[") \
             or not numbers.endswith(b"]"):
+        return None
+    if type(complete) is not int or not 0 <= complete <= 2 or type(frame) is not int \
+            or not 0 <= frame < 2**63 or type(time_ns) is not int or not 0 <= time_ns < 2**64:
         return None
     tokens: list[bytes] = []
     for piece in numbers[1:-1].split(b","):
@@ -452,6 +459,10 @@ def _frame_json_py(numbers: bytes, names: tuple, modes: tuple, with_base: bool,
         tokens.append(text)
     if len(tokens) != 13 * k:
         return None
+    sec, nsec = divmod(time_ns, 10**9)
+    middle = f'{_COMPLETE_TEXTS[complete]},"frame":{frame},"parts":['.encode()
+    end = f'],"time_ns":{time_ns}}}'.encode()
+    stamp = f'{{"nsec":{nsec},"sec":{sec}}}'.encode()
     first = 1 if with_base else 0
     base = _json_part(tokens[:13], names[0], modes[0]) if with_base else b"null"
     parts = b",".join([_json_part(tokens[13 * i:13 * i + 13], names[i], modes[i])
@@ -559,12 +570,10 @@ class FrameEncoder:
             text = orjson.dumps(numbers)
         except TypeError:  # orjson.JSONEncodeError: a type it does not write
             return None
-        t = record.time_ns
-        sec, nsec = divmod(t, 10**9)
-        written = _FRAME_JSON(text, tuple(names), tuple(modes), first == 1,
-                              f'{complete},"frame":{record.frame},"parts":['.encode(),
-                              f'],"time_ns":{t}}}'.encode(),
-                              f'{{"nsec":{nsec},"sec":{sec}}}'.encode())
+        # The frame's number and time are written there too (no texts made for them here).
+        written = _FRAME_JSON(text, names, modes, first == 1,
+                              0 if not complete else 1 if complete == _COMPLETE_TEXTS[1] else 2,
+                              record.frame, record.time_ns)
         if written is None:
             return None
         return [(PARTS_TOPIC, written[0]), (FOXGLOVE_TOPIC, written[1])]
