@@ -2003,7 +2003,10 @@ def frame_record(scene: Scene, state: WorldState, inputs: TrackerFrame,
     prev_state, prev_record = previous
     snaps = list(prev_record.parts) if scratch is None else scratch
     parts, prev_parts = state.parts, prev_state.parts
-    for index in set(prev_awake).union(awake):
+    looked_at = set(awake)  # (added to, not set.union: compiled, that is a Python call)
+    for index in prev_awake:
+        looked_at.add(index)
+    for index in looked_at:
         if parts[index] is not prev_parts[index]:
             snaps[index] = _snapshot_in(scene, index, parts[index], moving, cm_base)
     return FrameRecord(inputs, base, tuple(snaps), events)

@@ -255,10 +255,19 @@ def symmetry(moments: sp.Vec3) -> tuple[int, float] | None:
     the largest, round-off of the mass properties) to ``I_t``, ``axis`` the third; None
     for a body with three distinct moments. A sphere is symmetric about any axis."""
     i0, i1, i2 = moments
-    top = max(abs(i0), abs(i1), abs(i2))
-    for axis, a, b in ((2, i0, i1), (0, i1, i2), (1, i2, i0)):
-        if abs(a - b) <= _SYMMETRY_RTOL * top:
-            return axis, 0.5 * (a + b)
+    # (Written out, as ``max`` would take them: compiled, ``max`` and a loop over tuples
+    # boxed each moment, every frame of a flight.)
+    top = abs(i0)
+    if abs(i1) > top:
+        top = abs(i1)
+    if abs(i2) > top:
+        top = abs(i2)
+    if abs(i0 - i1) <= _SYMMETRY_RTOL * top:
+        return 2, 0.5 * (i0 + i1)
+    if abs(i1 - i2) <= _SYMMETRY_RTOL * top:
+        return 0, 0.5 * (i1 + i2)
+    if abs(i2 - i0) <= _SYMMETRY_RTOL * top:
+        return 1, 0.5 * (i2 + i0)
     return None
 
 
