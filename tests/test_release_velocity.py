@@ -230,3 +230,44 @@ def test_a_hand_that_turned_a_corner_before_it_opens_lets_go_at_its_last_velocit
         return float(np.sqrt(np.mean(np.square(errors))))
     assert rms("window_fit_corners", 1e-4) < 0.03 < 0.1 < rms("window_fit_stops", 1e-4)
     assert rms("window_fit_corners", 3e-4) <= rms("window_fit_stops", 3e-4)
+
+
+def _kept(history: tuple) -> tuple:
+    """The same samples as a held part keeps them (``velocity.new_sample``: each with the
+    time of the one before and the turn back to it)."""
+    out: tuple = ()
+    for t_ns, cm, q in history:
+        out += (velocity.new_sample(out, t_ns, cm, q),)
+    return out
+
+
+def test_the_turns_kept_with_the_samples_give_the_same_bits():
+    # A held part keeps with each sample the turn back to the one before; the estimate is
+    # bit for bit the one from plain samples: noisy, accelerating, turning, every method,
+    # and with samples duplicated or closer than MIN_INTERVAL_NS (which _distinct drops,
+    # so a kept turn back to a dropped sample must not be used).
+    rng = np.random.default_rng(3)
+    for trial in range(40):
+        history = _history(rng, pos_std=1e-3, rot_std=0.02, accel=(3.0, -1.0, 9.0),
+                           alpha=(20.0, 5.0, -8.0))
+        if trial % 2:
+            # Duplicates and near-duplicates (0.2 ms after) of random samples.
+            samples = list(history)
+            for k in sorted(rng.choice(len(samples) - 1, 3, replace=False), reverse=True):
+                t, cm, q = samples[k]
+                dt = 0 if rng.random() < 0.5 else velocity.MIN_INTERVAL_NS // 2
+                twin = sp.quat_mul(sp.quat_from_rotvec(tuple(rng.normal(0.0, 0.05, 3))), q)
+                samples.insert(k + 1, (t + dt, cm, sp.quat_normalize(twin)))
+            history = tuple(samples)
+        kept = _kept(history)
+        assert any(len(s) == 5 for s in kept)
+        for method in ("window_fit_corners", "window_fit_stops", "window_fit", "two_frame"):
+            for window in (2, 3, 5, WINDOW, 12):
+                plain = velocity.estimate(history, method=method, window=window)
+                assert velocity.estimate(kept, method=method, window=window) == plain
+                # A sample's kept turn is used only back to the sample it was taken of: a
+                # wrong one there would show (the older sample dropped by _distinct).
+                assert velocity.estimate(kept[len(kept) // 2:], method=method,
+                                         window=window) == \
+                    velocity.estimate(history[len(history) // 2:], method=method,
+                                      window=window)

@@ -246,7 +246,8 @@ def _follow_hands(f: _Frame) -> None:
         body = f.scene.parts[index]
         pose = hand.compose(held.hand_from_part)
         cm = pose.apply(body.center_of_mass)
-        history = (held.history + ((f.t_ns, cm, pose.rotation),))[-keep:]
+        newest = velocity.new_sample(held.history, f.t_ns, cm, pose.rotation)
+        history = (held.history + (newest,))[-keep:]
         v, w = velocity.estimate(history, method=physics.release_velocity,
                                  window=physics.release_window)
         f.parts[index] = part.moved(pose, v, w, Held(held.hand, held.hand_from_part, history,

@@ -89,6 +89,20 @@ def _turn_between(older: tuple, newer: tuple) -> sp.Vec3:
     return sp.quat_to_rotvec(sp.quat_mul(older, sp.quat_conj(newer)))
 
 
+def new_sample(history: tuple, t_ns: int, cm: sp.Vec3, rotation: sp.Quat) -> tuple:
+    """A held part's new sample for its ``history``: ``(t_ns, cm, rotation)``, and where
+    there is a sample before it, that one's time and the turn back to it
+    (``_turn_between``), which ``estimate`` would otherwise work out again in every frame
+    the two stay in its window (a window of seven: six turns a frame, each a Python call
+    of ``atan2``, compiled). ``estimate`` uses the turn only between the two samples it
+    was taken of (``_distinct`` may drop the one before), so a history of plain
+    ``(t_ns, cm, rotation)`` samples, or a mix, gives the same bits."""
+    if not history:
+        return (t_ns, cm, rotation)
+    before = history[-1]
+    return (t_ns, cm, rotation, before[0], _turn_between(before[2], rotation))
+
+
 def _slope_at_zero(times: list[float], values: list[sp.Vec3],
                    moments: tuple[float, float, float, float, float]) -> sp.Vec3:
     """d/dt at t = 0 of the least-squares polynomial (degree 2, or 1 for two points);
@@ -147,7 +161,11 @@ def estimate(history: tuple, *, method: str, window: int) -> tuple[sp.Vec3, sp.V
     # half a turn per window is not folded back into [0, pi]. Newest pair first.
     rotvecs = [sp.ZERO3]
     for i in range(len(samples) - 1, 0, -1):
-        step = _turn_between(samples[i - 1][2], samples[i][2])
+        newer, older = samples[i], samples[i - 1]
+        # The turn kept with the newer sample (``new_sample``) where it was taken back to
+        # this older one (their times equal: ``_distinct`` keeps one sample a time).
+        step: sp.Vec3 = newer[4] if len(newer) > 4 and newer[3] == older[0] \
+            else _turn_between(older[2], newer[2])
         rotvecs.append(sp.add(rotvecs[-1], step))
     rotvecs.reverse()
     moments = _moments(times)
