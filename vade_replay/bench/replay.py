@@ -228,14 +228,22 @@ def run(short: bool, out_dir: Path, log=None) -> tuple[list[dict], list[dict]]:
     per_frame_ratio = ((static[1]["replay_s"] - static[1]["setup_s"])
                        / (static[0]["replay_s"] - static[0]["setup_s"]))
     ends = [r for r in rows if r["table"] == "end_to_end"]
-    worst_ratio = max(r["replay_over_read"] for r in ends)
+    # The synthetic session and the goldens apart: a long session pays its setup once, a
+    # golden of a few seconds mostly its setup (docs/DEVELOPMENT.md, Next 1).
+    worst_golden = max((r for r in ends if r is not synthetic),
+                       key=lambda r: r["replay_over_read"])
     worst_library = max(r["replay_over_library_read"] for r in ends)
     alone, crowd = static
     targets = [
-        {"target": "replay with checking / plain read-and-decode (worst session)",
-         "measured": round(worst_ratio, 2), "limit": "<= 2", "met": worst_ratio <= 2.0},
-        {"target": "the same, against the mcap library's reader and json.loads (for "
-                   "comparison: the floor of earlier figures)",
+        {"target": "replay with checking / plain read-and-decode: the three-part session "
+                   f"({synthetic['session']})",
+         "measured": round(synthetic["replay_over_read"], 2), "limit": "<= 2",
+         "met": synthetic["replay_over_read"] <= 2.0},
+        {"target": f"the same: the goldens (the worst, {worst_golden['session']})",
+         "measured": round(worst_golden["replay_over_read"], 2), "limit": "<= 2",
+         "met": worst_golden["replay_over_read"] <= 2.0},
+        {"target": "the same, against the mcap library's reader and json.loads (the worst "
+                   "session; for comparison: the floor of earlier figures)",
          "measured": round(worst_library, 2), "limit": "<= 2", "met": worst_library <= 2.0},
         {"target": f"real-time factor, 60 Hz three-part session ({synthetic['session']})",
          "measured": round(synthetic["x_real_time"], 1), "limit": ">= 300",
