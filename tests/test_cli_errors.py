@@ -1137,3 +1137,38 @@ def test_an_attachment_whose_name_is_damaged_is_not_called_a_file(tmp_path):
     result = run_cli("vade-replay", str(path))
     _assert_clean_error(result, "the attachment whose name reads 'sdssion.json' (the "
                                 "session or a file) stored in it is damaged")
+
+
+def test_tracker_time_going_backwards_is_refused_naming_the_frame(tmp_path):
+    # A recording vade-record cannot write (a tracker log's time never steps back there):
+    # one edited so, or another tool's. The frames before it replay; then a clear error.
+    def edit(topic, index, data):
+        if topic == "/tracker" and index == 42:
+            msg = json.loads(data)
+            msg["time_ns"] -= 10**9 // 30  # two frames back
+            return json.dumps(msg).encode()
+        return data
+
+    path = tmp_path / "back_in_time.mcap"
+    copy_recording(RECORDINGS / "drop_on_table.mcap", path, edit)
+    _assert_clean_error(run_cli("vade-replay", str(path)), "back_in_time.mcap", "frame 42",
+                        "/tracker time_ns", "goes backwards")
+    frames = []
+    with pytest.raises(Exception, match="goes backwards"):
+        for frame in Recording(path).frames():
+            frames.append(frame.inputs.frame)
+    assert frames == list(range(42))
+    # A repeated time (a duplicated sample) is not refused.
+    times = [f.inputs.time_ns for f in Recording(RECORDINGS / "drop_on_table.mcap").frames()]
+
+    def repeat(topic, index, data):
+        if topic == "/tracker" and index == 42:
+            msg = json.loads(data)
+            msg["time_ns"] = times[41]
+            return json.dumps(msg).encode()
+        return data
+
+    same = tmp_path / "same_time.mcap"
+    copy_recording(RECORDINGS / "drop_on_table.mcap", same, repeat)
+    assert [f.inputs.time_ns for f in Recording(same).frames()] == \
+        times[:42] + [times[41]] + times[43:]

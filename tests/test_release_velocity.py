@@ -260,7 +260,7 @@ def test_the_turns_kept_with_the_samples_give_the_same_bits():
                 samples.insert(k + 1, (t + dt, cm, sp.quat_normalize(twin)))
             history = tuple(samples)
         kept = _kept(history)
-        assert any(len(s) == 5 for s in kept)
+        assert any(len(s) == 6 for s in kept)
         for method in ("window_fit_corners", "window_fit_stops", "window_fit", "two_frame"):
             for window in (2, 3, 5, WINDOW, 12):
                 plain = velocity.estimate(history, method=method, window=window)
@@ -271,3 +271,17 @@ def test_the_turns_kept_with_the_samples_give_the_same_bits():
                                          window=window) == \
                     velocity.estimate(history[len(history) // 2:], method=method,
                                       window=window)
+
+
+def test_a_kept_turn_is_not_taken_across_a_tracker_time_that_steps_back():
+    # Times 0, 10 ms, 0, 0.1 ms (a recording whose tracker time steps back): _distinct
+    # keeps the first and the last, whose time before (0) is the first sample's too; the
+    # last's kept turn is back to the third, not the first, and must not be used.
+    q = [sp.quat_from_rotvec((0.0, 0.0, a)) for a in (0.0, 0.3, 0.1, 0.2)]
+    cm = [(0.0, 0.0, 0.0), (0.1, 0.0, 0.0), (0.0, 0.2, 0.0), (0.0, 0.0, 0.3)]
+    times = [0, 10_000_000, 0, 100_000]
+    plain = tuple(zip(times, cm, q))
+    kept = _kept(plain)
+    for method in ("window_fit", "two_frame"):
+        assert velocity.estimate(kept, method=method, window=WINDOW) == \
+            velocity.estimate(plain, method=method, window=WINDOW)

@@ -278,8 +278,13 @@ make_frame_texts(frame_texts *ft, PyObject *complete_obj, PyObject *frame_obj,
             || !PyLong_CheckExact(time_obj))
         return -1;
     complete = PyLong_AsLong(complete_obj);
+    if (PyErr_Occurred() || complete < 0 || complete > 2) {  /* (each checked before the
+                                                                next call: the C API) */
+        PyErr_Clear();
+        return -1;
+    }
     frame = PyLong_AsLongLong(frame_obj);
-    if (PyErr_Occurred() || complete < 0 || complete > 2 || frame < 0) {
+    if (PyErr_Occurred() || frame < 0) {
         PyErr_Clear();
         return -1;
     }

@@ -231,7 +231,15 @@ def recorded_frames(messages: Iterator[Any], topics: dict[int, str],
                 if current is not None:
                     pending.clear()
                     yield current
-                current = RecordedFrame(decode_tracker(data), [])
+                inputs = decode_tracker(data)
+                if current is not None and inputs.time_ns < current.inputs.time_ns:
+                    # (A tracker's frames may repeat a time, a duplicated sample; never go
+                    # back: the step and the release-velocity fit take time as it comes.)
+                    raise RecordingError(
+                        f"tracker time goes backwards: {inputs.time_ns} ns after "
+                        f"{current.inputs.time_ns} ns (frame {current.inputs.frame})",
+                        field=f"{TRACKER_TOPIC} time_ns", frame=inputs.frame)
+                current = RecordedFrame(inputs, [])
                 pending.append(current)
             elif topic is not None and topic in CHANNELS:
                 if current is None:

@@ -91,16 +91,19 @@ def _turn_between(older: tuple, newer: tuple) -> sp.Vec3:
 
 def new_sample(history: tuple, t_ns: int, cm: sp.Vec3, rotation: sp.Quat) -> tuple:
     """A held part's new sample for its ``history``: ``(t_ns, cm, rotation)``, and where
-    there is a sample before it, that one's time and the turn back to it
-    (``_turn_between``), which ``estimate`` would otherwise work out again in every frame
-    the two stay in its window (a window of seven: six turns a frame, each a Python call
-    of ``atan2``, compiled). ``estimate`` uses the turn only between the two samples it
-    was taken of (``_distinct`` may drop the one before), so a history of plain
-    ``(t_ns, cm, rotation)`` samples, or a mix, gives the same bits."""
+    there is a sample before it, that one's time, the turn back to it (``_turn_between``)
+    and its rotation (the same object), which ``estimate`` would otherwise work out again
+    in every frame the two stay in its window (a window of seven: six turns a frame, each
+    a Python call of ``atan2``, compiled). ``estimate`` uses the turn only between the two
+    samples it was taken of (``_distinct`` may drop the one before; a tracker whose time
+    steps back can bring another sample of that time next to it: the rotation tells them
+    apart), so a history of plain ``(t_ns, cm, rotation)`` samples, or a mix, gives the
+    same bits."""
     if not history:
         return (t_ns, cm, rotation)
     before = history[-1]
-    return (t_ns, cm, rotation, before[0], _turn_between(before[2], rotation))
+    q_before = before[2]
+    return (t_ns, cm, rotation, before[0], _turn_between(q_before, rotation), q_before)
 
 
 def _slope_at_zero(times: list[float], values: list[sp.Vec3],
@@ -163,9 +166,9 @@ def estimate(history: tuple, *, method: str, window: int) -> tuple[sp.Vec3, sp.V
     for i in range(len(samples) - 1, 0, -1):
         newer, older = samples[i], samples[i - 1]
         # The turn kept with the newer sample (``new_sample``) where it was taken back to
-        # this older one (their times equal: ``_distinct`` keeps one sample a time).
-        step: sp.Vec3 = newer[4] if len(newer) > 4 and newer[3] == older[0] \
-            else _turn_between(older[2], newer[2])
+        # this older one: the same time and the very rotation object.
+        step: sp.Vec3 = newer[4] if len(newer) > 5 and newer[3] == older[0] \
+            and newer[5] is older[2] else _turn_between(older[2], newer[2])
         rotvecs.append(sp.add(rotvecs[-1], step))
     rotvecs.reverse()
     moments = _moments(times)
