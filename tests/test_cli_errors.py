@@ -1029,6 +1029,29 @@ def test_a_mesh_in_other_units_than_the_session_is_warned_of_first(tmp_path, ext
         assert lines.index(mesh[0]) == 0  # before what it causes (inside the table, ...)
 
 
+@pytest.mark.parametrize("given", [None, "mm"])
+def test_a_mesh_child_of_a_compound_in_other_units_is_warned_of(tmp_path, given):
+    """The same slip inside a compound shape (a block with a peg drawn in millimetres): the
+    warning names the child and its file; with the child's units given, none."""
+    import trimesh
+    (tmp_path / "peg.stl").write_bytes(
+        trimesh.creation.box(extents=[40.0, 40.0, 80.0]).export(file_type="stl"))
+    doc = _doc()
+    doc["parts"][0]["shape"] = {"type": "compound", "children": [
+        {"type": "box", "size": [0.04, 0.04, 0.02]},
+        {"type": "mesh", "file": "peg.stl", **({"units": given} if given else {}),
+         "pose": {"position": [0.0, 0.0, 0.05]}}]}
+    result = run_cli("vade-record", str(_write(tmp_path, doc)), "-o", str(tmp_path / "o.mcap"))
+    mesh = [line for line in result.stderr.splitlines()
+            if line.startswith("warning") and "peg.stl" in line]
+    if given:
+        assert not mesh, result.stderr
+    else:
+        assert len(mesh) == 1, result.stderr
+        assert "parts[0].shape.children[1] ('peg.stl')" in mesh[0]
+        assert "too large for a part" in mesh[0] and "shape.units" in mesh[0]
+
+
 def test_damaged_physics_metadata_is_not_restored_by_as_recorded(tmp_path):
     """MCAP's metadata carries no CRC: a user's trial changed the recorded model "general"
     to "General", and --as-recorded ran with a value no session allows. It is held to the

@@ -1358,8 +1358,9 @@ _MESH_LARGEST_M = 5.0
 
 
 def mesh_scale_warnings(scene: Scene, doc: dict | None) -> list[str]:
-    """A part's or the base part's mesh file (``shape.file`` with no ``shape.units``) over
-    5 m across: drawn in other units than the session's. (A user's trial: a mesh drawn in
+    """A part's or the base part's mesh file (``shape.file`` with no ``shape.units``, or
+    such a child of a compound shape) over 5 m across: drawn in other units than the
+    session's. (A user's trial: a mesh drawn in
     millimetres in a metre session was warned of only as starting 6e+04 mm inside the
     table, and its grab refused as too heavy.)"""
     if not doc:
@@ -1375,17 +1376,39 @@ def mesh_scale_warnings(scene: Scene, doc: dict | None) -> list[str]:
     out = []
     for where, item in listed:
         shape, body = item.get("shape"), bodies.get(str(item.get("name")))
-        if not isinstance(shape, dict) or shape.get("type") != "mesh" or "units" in shape \
-                or body is None:
+        meshes = _unitless_meshes(shape, f"{where}.shape")
+        if not meshes or body is None:
             continue
         size = [body.bbox_max[k] - body.bbox_min[k] for k in range(3)]
         if max(size) <= _MESH_LARGEST_M:
             continue
         across = " x ".join(f"{extent / UNIT_TO_M[units]:.3g}" for extent in size)
-        out.append(f"{where}.shape: the mesh {shape.get('file')!r} is {across} {units} "
-                   "across, too large for a part of an assembly: drawn in millimetres? give "
-                   "shape.units (its mass and inertia follow its size)")
+        if len(meshes) == 1 and meshes[0][0] == f"{where}.shape":
+            out.append(f"{where}.shape: the mesh {meshes[0][1]!r} is {across} {units} "
+                       "across, too large for a part of an assembly: drawn in millimetres? "
+                       "give shape.units (its mass and inertia follow its size)")
+        else:
+            # A compound: the part is that large; its mesh children without units are the
+            # likely cause (each child's shape.units applies to it alone).
+            named = ", ".join(f"{at} ({name!r})" for at, name in meshes)
+            out.append(f"{where}.shape: the part is {across} {units} across, too large for a "
+                       f"part of an assembly, with mesh children of no units: {named}: "
+                       "drawn in millimetres? give each one's shape.units (its mass and "
+                       "inertia follow its size)")
     return out
+
+
+def _unitless_meshes(shape, at: str) -> list[tuple[str, str]]:
+    """The mesh files of a shape (itself, or the children of a compound, at any depth)
+    that give no ``units``: ``(where, file)``."""
+    if not isinstance(shape, dict):
+        return []
+    if shape.get("type") == "mesh":
+        return [] if "units" in shape else [(at, str(shape.get("file")))]
+    if shape.get("type") == "compound" and isinstance(shape.get("children"), list):
+        return [found for i, child in enumerate(shape["children"])
+                for found in _unitless_meshes(child, f"{at}.children[{i}]")]
+    return []
 
 
 def mass_warnings(scene: Scene, doc: dict | None) -> list[str]:
