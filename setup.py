@@ -88,5 +88,13 @@ def ext_modules():
     return extensions
 
 
+def _jobs() -> int:
+    """Compilers at once: ``VADE_REPLAY_BUILD_JOBS``, else every core (native.build_jobs)."""
+    jobs, warning = NATIVE["build_jobs"]()
+    if warning:
+        _warn(warning)
+    return jobs
+
+
 setup(ext_modules=ext_modules(),
-      options={"build_ext": {"parallel": os.cpu_count() or 1}})
+      options={"build_ext": {"parallel": _jobs()}})

@@ -201,3 +201,17 @@ def test_the_pure_switch_turns_the_c_writer_off_too():
                           text=True, timeout=120, env=dict(os.environ, VADE_REPLAY_PURE="1"))
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == ["True", "()"]
+
+
+def test_the_install_compiles_with_the_jobs_asked_for():
+    """``VADE_REPLAY_BUILD_JOBS`` sets the compilers the install runs at once (setup.py);
+    unset, every core; anything but a whole number of at least 1 is warned of and every
+    core used."""
+    cores = os.cpu_count() or 1
+    assert native.build_jobs({}) == (cores, None)
+    assert native.build_jobs({native.JOBS_ENV: " "}) == (cores, None)
+    assert native.build_jobs({native.JOBS_ENV: "1"}) == (1, None)
+    assert native.build_jobs({native.JOBS_ENV: "3"}) == (3, None)
+    for bad in ("0", "-2", "two", "1.5"):
+        jobs, warning = native.build_jobs({native.JOBS_ENV: bad})
+        assert jobs == cores and native.JOBS_ENV in warning and repr(bad) in warning

@@ -51,6 +51,8 @@ PURE_ENV = "VADE_REPLAY_PURE"
 REQUIRE_ENV = "VADE_REPLAY_REQUIRE_COMPILED"
 # Written by setup.py next to the modules when it compiles them: each source's SHA-256.
 BUILT_FROM = "vade_replay/_compiled_from.py"
+# How many C compilers the install runs at once (setup.py): every core unless set.
+JOBS_ENV = "VADE_REPLAY_BUILD_JOBS"
 
 
 def module_names() -> tuple[str, ...]:
@@ -63,6 +65,21 @@ def pure_requested() -> bool:
 
 def compiled_required() -> bool:
     return os.environ.get(REQUIRE_ENV, "") not in ("", "0")
+
+
+def build_jobs(environ=None) -> tuple[int, str | None]:
+    """The number of compilers the install runs at once: ``VADE_REPLAY_BUILD_JOBS`` (a
+    whole number, at least 1), else every core. With a warning where the variable is set
+    to anything else (the install goes on with every core)."""
+    environ = os.environ if environ is None else environ
+    cores = os.cpu_count() or 1
+    text = environ.get(JOBS_ENV, "").strip()
+    if not text:
+        return cores, None
+    if text.isdigit() and int(text) >= 1:
+        return int(text), None
+    return cores, (f"{JOBS_ENV}={text!r} is not a whole number of at least 1: compiling "
+                   f"with {cores} jobs (every core)")
 
 
 def source_hash(path: str) -> str:
