@@ -57,11 +57,15 @@ MIN_INTERVAL_NS: Final = 500_000
 def _distinct(history: tuple) -> list:
     """Oldest first; of samples closer together than MIN_INTERVAL_NS, only the newest."""
     out: list = []
-    for sample in history:
-        if out and sample[0] - out[-1][0] < MIN_INTERVAL_NS:
+    last_t = 0  # (the time of out[-1]: a typed int, where the sample's are Python objects)
+    for item in history:
+        sample: tuple = item  # (a tuple: compiled, indexed in C, not as any object)
+        t: int = sample[0]
+        if out and t - last_t < MIN_INTERVAL_NS:
             out[-1] = sample
         else:
             out.append(sample)
+        last_t = t
     return out
 
 
@@ -155,16 +159,23 @@ def estimate(history: tuple, *, method: str, window: int) -> tuple[sp.Vec3, sp.V
     if len(samples) < 2:
         return sp.ZERO3, sp.ZERO3
     samples = samples[-2:] if method == "two_frame" else samples[-window:]
-    t_last = samples[-1][0]
+    t_last: int = samples[-1][0]
     # Times in seconds before the newest sample; rotation vectors relative to the newest
     # orientation, in world axes: for a constant angular velocity w they are exactly t w.
-    times = [(sample[0] - t_last) * 1e-9 for sample in samples]
+    # (Each time read as a typed int: compiled, the arithmetic on the sample's own object
+    # was a generic subtraction and multiplication, each a new object.)
+    times: list[float] = []
+    for item in samples:
+        sample: tuple = item
+        t: int = sample[0]
+        times.append((t - t_last) * 1e-9)
     positions = [sample[1] for sample in samples]
     # Unwrapped: summed frame-to-frame steps (each under half a turn), so a spin faster than
     # half a turn per window is not folded back into [0, pi]. Newest pair first.
     rotvecs = [sp.ZERO3]
     for i in range(len(samples) - 1, 0, -1):
-        newer, older = samples[i], samples[i - 1]
+        newer: tuple = samples[i]
+        older: tuple = samples[i - 1]
         # The turn kept with the newer sample (``new_sample``) where it was taken back to
         # this older one: the same time and the very rotation object.
         step: sp.Vec3 = newer[4] if len(newer) > 5 and newer[3] == older[0] \
@@ -208,8 +219,14 @@ def _unless_cornered(fit: sp.Vec3, values: list[sp.Vec3], times: list[float]) ->
     r0, r1, r2 = (d0 - c0) * k, (d1 - c1) * k, (d2 - c2) * k
     third = 1.0 / 3.0
     m0, m1, m2 = (p0 + q0 + r0) * third, (p1 + q1 + r1) * third, (p2 + q2 + r2) * third
-    scatter = max(_length(p0 - m0, p1 - m1, p2 - m2), _length(q0 - m0, q1 - m1, q2 - m2),
-                  _length(r0 - m0, r1 - m1, r2 - m2))
+    # (The largest as ``max`` takes it, written out: compiled, ``max`` is a Python call.)
+    scatter = _length(p0 - m0, p1 - m1, p2 - m2)
+    q_off = _length(q0 - m0, q1 - m1, q2 - m2)
+    if q_off > scatter:
+        scatter = q_off
+    r_off = _length(r0 - m0, r1 - m1, r2 - m2)
+    if r_off > scatter:
+        scatter = r_off
     off = _length(fit[0] - m0, fit[1] - m1, fit[2] - m2)
     if off <= 4.0 * scatter + 0.01 * _length(m0, m1, m2) + 1e-9:
         return fit
