@@ -43,6 +43,12 @@ def test_files_hold_every_measurement(short_run):
         "peak memory, three parts, 2 min / three parts, 0.5 min"]
     assert doc["targets"][0]["measured"] == round(ends["three_parts_30s"]["replay_over_read"], 2)
     assert doc["targets"][1]["measured"] == round(ends[worst]["replay_over_read"], 2)
+    # Each verdict is its figure held to its limit.
+    for target in doc["targets"]:
+        bound = float(target["limit"].split()[-1])
+        held = target["measured"] <= bound if target["limit"].startswith("<=") \
+            else target["measured"] >= bound
+        assert target["met"] == held or abs(target["measured"] - bound) < 0.01, target
     for row in doc["rows"]:
         if row["table"] not in ("memory", "builds"):
             assert row["replay_s"] > 0 and row["read_decode_s"] > 0 and row["frames"] > 100
