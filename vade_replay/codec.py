@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable, Iterator
 from dataclasses import replace
 from typing import Any, Final
 
@@ -22,8 +23,6 @@ import orjson
 from . import events as ev
 from . import native
 from .errors import RecordingError
-from collections.abc import Callable, Iterator
-
 from .frames import (MAX_ABS_POSITION_M, DeviceSample, FrameRecord, PartSnapshot,
                      RecordedFrame, TrackerFrame, changed_indices)
 
@@ -439,6 +438,8 @@ def _json_transform(t: list[bytes], name: bytes, stamp: bytes) -> bytes:
                      b',"translation":{"x":', t[6], b',"y":', t[7], b',"z":', t[8], b"}}"))
 
 
+# A frame's "complete" key by its code: 0 the full encoding (no such key), 1 a frame of
+# changes, 2 a key frame (``derived_messages``); both frame writers take the code.
 _COMPLETE_TEXTS: Final = ("", ',"complete":false', ',"complete":true')
 
 
@@ -555,7 +556,7 @@ class FrameEncoder:
         return part, head, tail
 
     def _by_numbers(self, record: FrameRecord, items: tuple, shown: list[int], first: int,
-                    complete: str) -> list[tuple[str, bytes]] | None:
+                    complete: int) -> list[tuple[str, bytes]] | None:
         """The two messages with every number of the parts shown written by one
         ``orjson.dumps`` and the text around them by ``_FRAME_JSON`` (C where built), or
         None where it does not cover a number."""
@@ -579,16 +580,15 @@ class FrameEncoder:
         except TypeError:  # orjson.JSONEncodeError: a type it does not write
             return None
         # The frame's number and time are written there too (no texts made for them here).
-        written = _FRAME_JSON(text, names, modes, first == 1,
-                              0 if not complete else 1 if complete == _COMPLETE_TEXTS[1] else 2,
-                              record.frame, record.time_ns)
+        written = _FRAME_JSON(text, names, modes, first == 1, complete, record.frame,
+                              record.time_ns)
         if written is None:
             return None
         return [(PARTS_TOPIC, written[0]), (FOXGLOVE_TOPIC, written[1])]
 
     def _by_texts(self, record: FrameRecord, items: tuple, listed: list[int],
                   shown: list[int], first: int,
-                  complete: str) -> list[tuple[str, bytes]] | None:
+                  complete: int) -> list[tuple[str, bytes]] | None:
         """The two messages from each part's text, kept from frame to frame while its
         snapshot is the same object; None where ``_fragments`` does not cover one."""
         n = len(items)
@@ -614,7 +614,7 @@ class FrameEncoder:
             transforms = stamp.join(glue)
         else:
             transforms = ",".join([heads[i] + stamp + tails[i] for i in shown])
-        return [(PARTS_TOPIC, (f'{{"base":{base}{complete},"frame":{frame},'
+        return [(PARTS_TOPIC, (f'{{"base":{base}{_COMPLETE_TEXTS[complete]},"frame":{frame},'
                                f'"parts":[{parts_text}],"time_ns":{t}}}').encode()),
                 (FOXGLOVE_TOPIC, ('{"transforms":[' + transforms + "]}").encode())]
 
@@ -642,11 +642,11 @@ class FrameEncoder:
             listed = [i for i in changed_indices(items, previous_items)
                       if i >= first and items[i] != previous_items[i]]
             shown = [0] + listed if first else listed
-            complete = ',"complete":false'
+            complete = 1  # (_COMPLETE_TEXTS)
         else:
             listed = list(range(first, n))
             shown = list(range(n))
-            complete = ',"complete":true' if self.parts == PARTS_CHANGED else ""
+            complete = 2 if self.parts == PARTS_CHANGED else 0
         out = self._by_numbers(record, items, shown, first, complete) \
             if 0 < len(shown) <= _NUMBERS_AT_MOST else None
         if out is None:

@@ -42,7 +42,7 @@ from zstandard import ZstdError
 
 from . import codec
 from .errors import RecordingError
-from .frames import FrameRecord, RecordedFrame, TrackerFrame
+from .frames import FrameRecord, RecordedFrame
 from .scene import Scene
 from .session import MCAP_MAGIC, Session, load_schema, parse, validated_digest
 

@@ -2087,12 +2087,11 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
                             i, checked = j, True
                         recorded, replayed = batch[i], stepped[i]
                         i += 1
-                        if checked:
-                            derived = recorded.derived if ours is None else ours
-                        elif writer is None:
-                            # The check by bytes, and by value where they differ
-                            # (``FrameEncoder.check``).
-                            ours = encoder.check(replayed, recorded.derived)
+                        if writer is None:
+                            if not checked:
+                                # The check by bytes, and by value where they differ
+                                # (``FrameEncoder.check``).
+                                ours = encoder.check(replayed, recorded.derived)
                             derived = recorded.derived if ours is None else ours
                         else:
                             derived = encoder.derived_messages(replayed)
