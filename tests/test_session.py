@@ -439,3 +439,29 @@ def test_a_file_the_session_names_is_named_where_it_is(tmp_path):
     recording = Recording(RECORDINGS / "drop_on_table.mcap")
     assert recording.session.file_named("log.csv") == \
         f"{RECORDINGS / 'drop_on_table.mcap'}:files/log.csv"
+
+
+@pytest.mark.parametrize("physics", [
+    {"model": "General"},                              # not one of the models
+    {"friction_static": "0.3"},                        # a string for a number
+    {"friction_statik": 0.3},                          # a typo of a key
+    {"gravity": [0.0, -9.81]},                         # too short
+    {"turn_max_step_s": 0},                            # not above its least
+])
+def test_the_physics_block_alone_is_judged_as_in_the_whole_session(physics):
+    """``validate_physics`` (what --as-recorded holds restored physics to, without
+    validating every part again) names the same field with the same message as the whole
+    session's validation; the block refers to nothing else in the schema, so it is whole."""
+    from vade_replay.session import load_schema, validate, validate_physics
+    assert '"$ref"' not in json.dumps(load_schema("session.schema.json")["properties"]["physics"])
+    doc = session_doc(parts=[{"name": "p", "shape": {"type": "box", "size": [0.1, 0.1, 0.1]},
+                              "density": 1000.0}], right_hand=[{"t": 0}], duration_s=0.1,
+                      physics=physics)
+    validate({**doc, "physics": {}}, file="s.json")  # all else in it is valid
+    with pytest.raises(SessionError) as whole:
+        validate(doc, file="s.json")
+    with pytest.raises(SessionError) as alone:
+        validate_physics(physics, file="s.json")
+    assert whole.value.field.startswith("physics")
+    assert (alone.value.field, alone.value.message) == (whole.value.field, whole.value.message)
+    validate_physics({}, file="s.json")  # nothing given: valid

@@ -38,7 +38,7 @@ from .recording import (RecordedFrame, Recording, RecordingWriter, in_place,
                         package_versions, partial_output, physics_metadata)
 from .scene import (LENGTH_FIELDS, PAPER_DEFAULTS, UNIT_TO_M, Scene, even_inertia_trace,
                     physics_from_doc)
-from .session import _DENSITY_RANGE, Session, load_schema, parse, strict_json, validate
+from .session import _DENSITY_RANGE, Session, load_schema, parse, strict_json, validate_physics
 from .spatial import Pose
 from .step import Stepper, beyond_end
 
@@ -1971,7 +1971,7 @@ def _restorable(recording: Recording, session: Session, block: dict, values: dic
     allowed = load_schema("session.schema.json")["properties"]["physics"]["properties"]
     given = {name: value for name, value in values.items() if name in allowed}
     try:
-        validate({**session.doc, "physics": {**block, **given}}, file=str(recording.path))
+        validate_physics({**block, **given}, file=str(recording.path))
     except SessionError as exc:
         raise RecordingError(f"its physics metadata cannot be restored: {exc.message} (the "
                              "file damaged, or made by another version): replay it without "

@@ -75,20 +75,46 @@ def _validator() -> jsonschema.Draft202012Validator:
     return _VALIDATOR
 
 
-def _path(error: jsonschema.ValidationError) -> str:
+_PHYSICS_VALIDATOR = None
+
+
+def _physics_validator() -> jsonschema.Draft202012Validator:
+    """The session schema's ``physics`` block on its own (it refers to nothing else in the
+    schema; ``tests/test_session.py`` holds it to that)."""
+    global _PHYSICS_VALIDATOR
+    if _PHYSICS_VALIDATOR is None:
+        import jsonschema
+        schema = load_schema("session.schema.json")
+        _PHYSICS_VALIDATOR = getattr(jsonschema, _VALIDATOR_CLASS)(
+            {"$schema": schema["$schema"], **schema["properties"]["physics"]})
+    return _PHYSICS_VALIDATOR
+
+
+def _path(error: jsonschema.ValidationError, prefix: tuple = ()) -> str:
     out = ""
-    for item in error.absolute_path:
+    for item in (*prefix, *error.absolute_path):
         out += f"[{item}]" if isinstance(item, int) else (f".{item}" if out else str(item))
     return out or "(top level)"
 
 
 def validate(doc: object, *, file: str) -> None:
     """Raise ``SessionError`` naming the first bad field."""
-    errors = sorted(_validator().iter_errors(doc), key=lambda e: (list(e.absolute_path), e.message))
+    _first_error(_validator(), doc, file, ())
+
+
+def validate_physics(block: object, *, file: str) -> None:
+    """``validate`` of a session's ``physics`` block alone (fields named ``physics.KEY``):
+    what ``replay``'s ``--as-recorded`` holds restored physics to, without validating a
+    session of hundreds of parts again."""
+    _first_error(_physics_validator(), block, file, ("physics",))
+
+
+def _first_error(validator, doc: object, file: str, prefix: tuple) -> None:
+    errors = sorted(validator.iter_errors(doc), key=lambda e: (list(e.absolute_path), e.message))
     if errors:
         import jsonschema
         error = _branch_error(jsonschema.exceptions.best_match(errors))
-        field = _path(error)
+        field = _path(error, prefix)
         if error.validator == "additionalProperties" and isinstance(error.instance, dict):
             # Name the unexpected key itself, and what would have been allowed.
             known = sorted(error.schema.get("properties", {}))
