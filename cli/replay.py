@@ -211,7 +211,7 @@ def _check_part_overrides(recordings: list[str], overrides: dict[str, str]) -> N
         else:
             if why is not None:
                 raise ConfigError(f"none of the {len(recordings)} recordings' sessions can "
-                                  f"take it ({why})", field=key)
+                                  f"take it ({why})", field=f"--set {key}")
 
 
 # Where the run's own lines go: standard output, unless a table is written there (``-``).

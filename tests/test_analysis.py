@@ -481,7 +481,7 @@ def test_a_studys_what_if_of_a_part_applies_where_the_session_has_it(tmp_path):
     none = run_cli("vade-replay", sleeve, gear, "--set", "parts.spacer.mass=1",
                    "--csv", str(table))
     assert none.returncode == 2 and not table.exists() and none.stdout == ""
-    assert none.stderr == ("error: field parts.spacer.mass: none of the 2 recordings' "
+    assert none.stderr == ("error: --set parts.spacer.mass: none of the 2 recordings' "
                            f"sessions can take it ({sleeve}: no part 'spacer' in this "
                            "session (its parts: sleeve))\n")
     alone = run_cli("vade-replay", gear, "--set", "parts.sleeve.mass=20")

@@ -1195,3 +1195,24 @@ def test_tracker_time_going_backwards_is_refused_naming_the_frame(tmp_path):
     copy_recording(RECORDINGS / "drop_on_table.mcap", same, repeat)
     assert [f.inputs.time_ns for f in Recording(same).frames()] == \
         times[:42] + [times[41]] + times[43:]
+
+
+@pytest.mark.parametrize("override", [
+    "physics.friction_static=abc",        # the schema's check of the changed session
+    "physics.nope=1",                     # an unknown physics name
+    "foo=1",                              # nothing a --set can change
+    "physics.contact_tolerance=3kg",      # a unit of the wrong kind
+    "physics.contact_tolerance=3zz",      # an unknown unit
+    "physics.contact_tolerance=1e400",    # not finite
+    "parts.nope.mass=1",                  # no such part
+    "tools.hoist=1",                      # a tool's key without its field
+])
+def test_every_set_error_begins_with_the_set_it_names(override):
+    """(Left from the twelfth session's trial: a --set's error began "--set KEY:" where the
+    changed session was refused and "field KEY:" where the key or value was.) One form:
+    the option as typed, exit 2, no traceback."""
+    key = override.partition("=")[0]
+    result = run_cli("vade-replay", str(RECORDINGS / "plane_block_wall.mcap"), "--set",
+                     override)
+    _assert_clean_error(result)
+    assert result.stderr.startswith(f"error: --set {key}: "), result.stderr

@@ -707,23 +707,23 @@ def _override_target(doc: dict, physics: dict, key: str) -> dict:
         tool, _, name = key[6:].partition(".")
         if not tool or not name or "." in name:
             raise ConfigError("a tool's field is tools.TOOL.FIELD=VALUE: one tool, one field",
-                              field=key)
+                              field=f"--set {key}")
         if name == "name":
             raise ConfigError("a tool's name is its device in the recorded tracker stream, "
-                              "and cannot be changed", field=key)
+                              "and cannot be changed", field=f"--set {key}")
         for candidate in doc.get("tools", []):
             if candidate.get("name") == tool:
                 return candidate
         known = ", ".join(t.get("name", "?") for t in doc.get("tools", [])) or "none"
         raise AbsentTarget(f"no tool {tool!r} in this session (its tools: {known})",
-                           "use tools.TOOL.FIELD=VALUE", field=key)
+                           "use tools.TOOL.FIELD=VALUE", field=f"--set {key}")
     if key.startswith("parts."):
         return _constraint_target(doc, key)
     raise ConfigError("only physics parameters, tools and parts can be changed: "
                       "physics.NAME=VALUE, tools.TOOL.FIELD=VALUE, "
                       "parts.PART.constraints.NAME.FIELD=VALUE or parts.PART.FIELD=VALUE "
                       "(mass, density, final_tolerance.distance, final_tolerance.angle_deg)",
-                      field=key)
+                      field=f"--set {key}")
 
 
 # What a what-if may change of a part's constraint or final pose: the recognition tolerances
@@ -748,7 +748,7 @@ def _constraint_target(doc: dict, key: str) -> dict:
     if not named:
         first = rest.split(".")[0]
         raise AbsentTarget(f"no part {first!r} in this session (its parts: "
-                           f"{', '.join(sorted(parts)) or 'none'})", usage, field=key)
+                           f"{', '.join(sorted(parts)) or 'none'})", usage, field=f"--set {key}")
     name = max(named, key=len)
     part, field = parts[name], rest[len(name) + 1:]
     if field == "mass":
@@ -756,32 +756,32 @@ def _constraint_target(doc: dict, key: str) -> dict:
     if field == "density":
         if "mass" in part:
             raise ConfigError(f"part {name!r} gives its mass (mass), which its density "
-                              f"only spreads; change parts.{name}.mass", field=key)
+                              f"only spreads; change parts.{name}.mass", field=f"--set {key}")
         if "density" not in part or "mass_properties" in part:
             raise ConfigError(f"part {name!r} has its mass from mass_properties, not a "
-                              f"density; change parts.{name}.mass (kg)", field=key)
+                              f"density; change parts.{name}.mass (kg)", field=f"--set {key}")
         return part
     assembly = part.get("assembly")
     if assembly is None:
         raise ConfigError(f"part {name!r} has no assembly (no constraints, no final pose)",
-                          field=key)
+                          field=f"--set {key}")
     if field in _FINAL_FIELDS:
         if "final_pose" not in assembly:
-            raise ConfigError(f"part {name!r} has no final pose", field=key)
+            raise ConfigError(f"part {name!r} has no final pose", field=f"--set {key}")
         return assembly.setdefault(field.split(".")[0], {})
     leaf = next((f for f in _CONSTRAINT_FIELDS if field.endswith("." + f)), None)
     if not field.startswith("constraints.") or leaf is None:
-        raise ConfigError(usage, field=key)
+        raise ConfigError(usage, field=f"--set {key}")
     wanted = field[len("constraints."):-len(leaf) - 1]
     constraints = assembly.get("constraints", [])
     names = [c.get("name", f"{c.get('type')}{i}") for i, c in enumerate(constraints)]
     if wanted not in names:
         raise ConfigError(f"no constraint {wanted!r} on part {name!r} (its constraints: "
-                          f"{', '.join(names) or 'none'})", field=key)
+                          f"{', '.join(names) or 'none'})", field=f"--set {key}")
     if names.count(wanted) > 1:
         raise ConfigError(f"part {name!r} has {names.count(wanted)} constraints named "
                           f"{wanted!r}: which one to change cannot be told (give each its "
-                          "own name in the session)", field=key)
+                          "own name in the session)", field=f"--set {key}")
     return constraints[names.index(wanted)].setdefault(leaf.split(".")[0], {})
 
 
@@ -841,14 +841,14 @@ def _in_session_units(key: str, text: str, units: str) -> str:
     if unit in _LENGTH_UNITS:
         if not _is_length(key):
             raise ConfigError(f"{text!r} has a length unit, and this is not a length",
-                              field=key)
+                              field=f"--set {key}")
         return repr(float(number) * _LENGTH_UNITS[unit] / UNIT_TO_M[units])
     if unit in _MASS_UNITS:
         if not _is_mass(key):
-            raise ConfigError(f"{text!r} has a mass unit, and this is not a mass", field=key)
+            raise ConfigError(f"{text!r} has a mass unit, and this is not a mass", field=f"--set {key}")
         return repr(float(number) * _MASS_UNITS[unit])
     raise ConfigError(f"{text!r}: unknown unit {unit!r} ({known}; or a plain number, in "
-                      "the session's units)", field=key)
+                      "the session's units)", field=f"--set {key}")
 
 
 def apply_overrides(session: Session, overrides: dict[str, str], *,
@@ -892,9 +892,9 @@ def apply_overrides(session: Session, overrides: dict[str, str], *,
         except json.JSONDecodeError:
             value = text
         except ValueError as exc:
-            raise ConfigError(str(exc), field=key) from None
+            raise ConfigError(str(exc), field=f"--set {key}") from None
         if not _finite_numbers(value):  # 1e400 reads as infinity
-            raise ConfigError(f"{text} is not a finite number", field=key)
+            raise ConfigError(f"{text} is not a finite number", field=f"--set {key}")
         target[key.rpartition(".")[2]] = value
         applied[key] = value
         if key == "physics.model":
