@@ -226,7 +226,8 @@ def test_the_frame_writers_write_the_reference_s_messages():
 
 @pytest.mark.parametrize("complete", [0, 1, 2])
 @pytest.mark.parametrize("frame, time_ns", [(0, 0), (3, 999_999_999), (17, 10**9),
-                                            (2**63 - 1, 2**64 - 1), (123456, 3_600_000_000_001)])
+                                            (2**63 - 1, 2**64 - 1), (123456, 3_600_000_000_001),
+                                            (10, 10**19), (9, 9)])
 def test_the_frame_writers_write_the_frame_s_number_time_and_completeness(complete, frame,
                                                                            time_ns):
     """The texts around the parts (``"complete"``, the frame, the time and the transforms'
