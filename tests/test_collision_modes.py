@@ -141,7 +141,16 @@ def test_feature_geometry_is_built_once_per_constraint_when_first_asked_for():
     assert fresh._mates == {} and fresh._whole_obj is None  # nothing built up front
     first = fresh._mate("sleeve", 0)
     assert fresh._mate("sleeve", 0) is first and set(fresh._mates) == {("sleeve", 0)}
-    assert first.base_whole is fresh._whole()  # the one base model, shared
+    # The SKIP checks' rest is built with it; the feature faces' models and the whole base
+    # only when a check asks for them (a part that only turns on its shaft never does),
+    # once, and the whole base is the one model the other checks share.
+    assert first.base_rest is not None
+    assert fresh._whole_obj is None and not first._features_built
+    part_model, base_obj = first.part_feature(), first.base_feature()
+    assert part_model is not None and base_obj is not None and first._features_built
+    assert first.part_feature() is part_model and first.base_feature() is base_obj
+    _, other, _, _ = fresh._models("sleeve", first, CheckMode.NOCARE_COPLANAR)
+    assert other is fresh._whole() and fresh._whole_obj is other
     with pytest.raises(KeyError):
         fresh._mate("sleeve", 1)  # the sleeve has one constraint
 

@@ -75,25 +75,52 @@ def _distance(a: fcl.CollisionObject, b: fcl.CollisionObject) -> float:
     return fcl.distance(a, b, fcl.DistanceRequest(), fcl.DistanceResult())
 
 
-@dataclass(frozen=True)
 class _MateGeometry:
-    """BVHs of one constraint, built once: the two feature sub-meshes and the rest, with the
-    triangles of each (what fcl's primitive indices count)."""
+    """BVHs of one constraint: the two feature sub-meshes and the rest, with the triangles
+    of each (what fcl's primitive indices count). The rest's is built with it; the feature
+    sub-meshes' (``KEEP_COPLANAR``, ``support_distance``) the first time they are asked for:
+    a part that only turns on its shaft, or slides and never nears its end, never pays for
+    them (the same models whenever built)."""
 
-    part_feature: fcl.BVHModel | None
-    base_feature: fcl.CollisionObject | None
-    base_rest: fcl.CollisionObject | None
-    base_whole: fcl.CollisionObject
-    sweep: fcl.Cylinder | None      # the part's solid of revolution about its axis
-    sweep_center: float             # middle of the part's span along its axis
-    part_feature_faces: np.ndarray
-    base_feature_faces: np.ndarray
-    base_rest_faces: np.ndarray
-    # SKIP_COAXIAL with ``physics.coaxial_fit`` radial where the part has fits
-    # (``Mate.fit_groups``): the part's model (None: the whole part's) and the base's
-    # object of each query, and their triangles; their least distance is the part's.
-    # None: the whole part against the rest, one query.
-    fit_pairs: tuple | None
+    def __init__(self, part_vertices: np.ndarray, base_vertices: np.ndarray,
+                 base_rest: fcl.CollisionObject | None, sweep: fcl.Cylinder | None,
+                 sweep_center: float, part_feature_faces: np.ndarray,
+                 base_feature_faces: np.ndarray, base_rest_faces: np.ndarray,
+                 fit_pairs: tuple | None) -> None:
+        self._part_vertices = part_vertices
+        self._base_vertices = base_vertices
+        self.base_rest = base_rest
+        self.sweep = sweep                      # the part's solid of revolution about its axis
+        self.sweep_center = sweep_center        # middle of the part's span along its axis
+        self.part_feature_faces = part_feature_faces
+        self.base_feature_faces = base_feature_faces
+        self.base_rest_faces = base_rest_faces
+        # SKIP_COAXIAL with ``physics.coaxial_fit`` radial where the part has fits
+        # (``Mate.fit_groups``): the part's model (None: the whole part's) and the base's
+        # object of each query, and their triangles; their least distance is the part's.
+        # None: the whole part against the rest, one query.
+        self.fit_pairs = fit_pairs
+        self._features_built = False
+        self._part_feature: fcl.BVHModel | None = None
+        self._base_feature: fcl.CollisionObject | None = None
+
+    def _features(self) -> None:
+        if not self._features_built:
+            self._part_feature = _bvh_of(self._part_vertices, self.part_feature_faces)
+            model = _bvh_of(self._base_vertices, self.base_feature_faces)
+            self._base_feature = None if model is None else fcl.CollisionObject(
+                model, fcl.Transform())
+            self._features_built = True
+
+    def part_feature(self) -> fcl.BVHModel | None:
+        """The part's feature faces' model (None where it has none)."""
+        self._features()
+        return self._part_feature
+
+    def base_feature(self) -> fcl.CollisionObject | None:
+        """The base's feature faces' object (None where it has none)."""
+        self._features()
+        return self._base_feature
 
 
 @dataclass(eq=False)
@@ -249,12 +276,11 @@ class CollisionWorld:
             if base is None or body.assembly is None or not 0 <= mate < len(body.assembly.mates):
                 raise KeyError((part, mate))
             geometry = self._mates[(part, mate)] = self._mate_geometry(
-                body, base, body.assembly.mates[mate], self._whole(), self._identity,
-                self._radial)
+                body, base, body.assembly.mates[mate], self._identity, self._radial)
         return geometry
 
     @staticmethod
-    def _mate_geometry(body: Body, base: Body, mate: Mate, whole, identity,
+    def _mate_geometry(body: Body, base: Body, mate: Mate, identity,
                        radial: bool) -> _MateGeometry:
         def obj(model):
             return None if model is None else fcl.CollisionObject(model, identity)
@@ -303,20 +329,20 @@ class CollisionWorld:
                     queries.append((model, other, body.faces[faces], kept, gap))
             pairs = tuple(queries)
         return _MateGeometry(
-            _bvh_of(body.vertices, part_feature), obj(_bvh_of(base.vertices, base_feature)),
-            rest_obj, whole, sweep, 0.5 * (mate.part_span[0] + mate.part_span[1]),
-            part_feature, base_feature, base_rest, pairs)
+            body.vertices, base.vertices, rest_obj, sweep,
+            0.5 * (mate.part_span[0] + mate.part_span[1]), part_feature, base_feature,
+            base_rest, pairs)
 
     def _models(self, part: str, geometry: _MateGeometry, mode: CheckMode):
         """The part's model and the base's object that ``mode`` compares, and the triangles
         of each."""
         if mode is KEEP_COPLANAR:
-            return (geometry.part_feature, geometry.base_feature, geometry.part_feature_faces,
-                    geometry.base_feature_faces)
+            return (geometry.part_feature(), geometry.base_feature(),
+                    geometry.part_feature_faces, geometry.base_feature_faces)
         body = self._bodies[part]
         base_faces = self._base_faces if mode is NOCARE_COPLANAR \
             else geometry.base_rest_faces
-        other = geometry.base_whole if mode is NOCARE_COPLANAR else geometry.base_rest
+        other = self._whole() if mode is NOCARE_COPLANAR else geometry.base_rest
         return self._model(part), other, body.faces, base_faces
 
     def base_distance(self, part: str, mate: int, base_from_part: sp.Pose,
@@ -400,11 +426,12 @@ class CollisionWorld:
     def support_distance(self, part: str, mate: int, point: sp.Vec3) -> float:
         """Distance from a point on the base plane to the base's feature faces (0: on them)."""
         geometry = self._mate(part, mate)
-        if geometry.base_feature is None:
+        feature = geometry.base_feature()
+        if feature is None:
             return float("inf")
         self.stats["fcl_distance_queries"] += 1
         probe = fcl.CollisionObject(self._probe, fcl.Transform(np.array(point, dtype=np.float64)))
-        return _distance(probe, geometry.base_feature)
+        return _distance(probe, feature)
 
     def sweep_clearance(self, part: str, mate: int, axis_point: sp.Vec3,
                         axis_rotation: sp.Quat) -> float:
