@@ -362,6 +362,20 @@ def test_an_interrupted_recording_says_where_its_frames_are(tmp_path, capsys):
                                        "session's end (interrupted); replayed the 10 frames"
                                        ) in result.stderr
     assert not Recording(RECORDINGS / "drop_on_table.mcap").stopped
+    # The next run to the same output does not write over those frames (a user's trial:
+    # an interrupted take was lost without a word), nor does a replay's -o; --force does.
+    kept_bytes = partial.read_bytes()
+    again = run_cli("vade-record", str(RECORDINGS / "drop_on_table.json"), "-o", str(out))
+    assert again.returncode == 2 and "Traceback" not in again.stderr
+    assert again.stderr.startswith(f"error: {out}: {partial} holds the frames an interrupted "
+                                   "run kept"), again.stderr
+    assert "--force" in again.stderr
+    replayed = run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"), "-o", str(out))
+    assert replayed.returncode == 2 and str(partial) in replayed.stderr
+    assert partial.read_bytes() == kept_bytes and not out.exists()
+    forced = run_cli("vade-record", str(RECORDINGS / "drop_on_table.json"), "-o", str(out),
+                     "--force")
+    assert forced.returncode == 0 and out.exists() and not partial.exists()
 
 
 def test_a_recording_cut_in_its_index_keeps_every_frame(tmp_path):

@@ -315,6 +315,35 @@ def partial_output(out: str | Path) -> tuple[Path, Path | None]:
     return ensure_writable(target.with_name(target.name + ".partial")), target
 
 
+def left_partial(out: str | Path) -> Path | None:
+    """The ``.partial`` file a run to ``out`` would write over, where one is there with
+    something in it and no run is writing it now (it is locked while written): the frames
+    an interrupted run kept (``vade-record`` says so as it stops), which may exist nowhere
+    else. None for a pipe or device, or where there is none."""
+    out = Path(out)
+    if in_place(out):
+        return None
+    target = out.resolve()
+    partial = target.with_name(target.name + ".partial")
+    try:
+        if not stat.S_ISREG(os.stat(partial).st_mode) or os.stat(partial).st_size == 0:
+            return None
+        fd = os.open(partial, os.O_RDONLY)
+    except OSError:
+        return None
+    try:
+        if fcntl is not None:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+            except BlockingIOError:
+                return None  # a run is writing it: its own open says so
+            except OSError:
+                pass  # locks not supported here
+        return partial
+    finally:
+        os.close(fd)  # (and the lock with it)
+
+
 def complete_output(partial: Path, target: Path | None) -> None:
     """Move a complete ``partial`` over its ``target`` (keeping the mode of a file there)."""
     if target is None:

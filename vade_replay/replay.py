@@ -34,7 +34,7 @@ from .collision import SKIP_COAXIAL, SKIP_COPLANAR, CollisionWorld
 from .errors import ConfigError, RecordingError, SessionError, VadeError
 from .frames import FrameRecord, TrackerFrame
 from .modes import Cause, Mode
-from .recording import (RecordedFrame, Recording, RecordingWriter, in_place,
+from .recording import (RecordedFrame, Recording, RecordingWriter, in_place, left_partial,
                         package_versions, partial_output, physics_metadata)
 from .scene import (LENGTH_FIELDS, PAPER_DEFAULTS, UNIT_TO_M, Scene, even_inertia_trace,
                     physics_from_doc)
@@ -983,6 +983,11 @@ class TrackerWatch:
         return out
 
 
+def _size(path: Path) -> str:
+    size = path.stat().st_size
+    return f"{size / 1e6:.1f} MB" if size >= 100_000 else f"{size:,} bytes"
+
+
 def refuse_replacing(out: str | Path, session: Session, scene: Scene) -> str | None:
     """``vade-record``'s and ``vade-replay -o``'s guard (``--force`` skips it), before a
     run writes ``out``: a file there that is a recording of another session, or no
@@ -994,6 +999,13 @@ def refuse_replacing(out: str | Path, session: Session, scene: Scene) -> str | N
     a session's parts or physics and recording it again is not refused; a review found an
     older version's recording replaced without a word)."""
     path = Path(out)
+    kept = left_partial(path)
+    if kept is not None:
+        # (A user's trial: an interrupted take's frames, kept there, were written over by
+        # the next run to the same output without a word.)
+        raise ConfigError(f"{kept} holds the frames an interrupted run kept ({_size(kept)}); "
+                          "move it away to keep them (it replays as it is), or pass --force "
+                          "to write over it", file=str(out))
     if not path.exists() or in_place(path):
         return None
     try:
