@@ -407,6 +407,50 @@ def test_a_recording_cut_in_its_index_keeps_every_frame(tmp_path):
     assert len(list(recording.frames())) < whole and recording.truncated
 
 
+def test_a_recording_damaged_after_its_data_end_keeps_every_frame(tmp_path):
+    """Damage past the data's end record (its summary or footer: a user's trial changed one
+    byte there) leaves every frame whole: all are replayed, with a warning that names where
+    the reading stopped, exit 0 (it was refused, as "damaged after 150 complete frames" of
+    151). Damage before the data's end is still refused, naming the frames read before it."""
+    import struct
+    golden = (RECORDINGS / "drop_on_table.mcap").read_bytes()
+    whole = len(list(Recording(RECORDINGS / "drop_on_table.mcap").frames()))
+    at = 8
+    while golden[at] != 0x0F:  # to the data's end record
+        at += 9 + struct.unpack_from("<Q", golden, at + 1)[0]
+    after = at + 9 + struct.unpack_from("<Q", golden, at + 1)[0]  # the summary's first record
+    data = bytearray(golden)
+    data[after + 1:after + 9] = struct.pack("<Q", 2**40)  # a length past any limit
+    path = tmp_path / "summary.mcap"
+    path.write_bytes(bytes(data))
+    recording = Recording(path)
+    assert len(list(recording.frames())) == whole and not recording.truncated
+    assert recording.end_lost and recording.end_damaged == after + 9
+    summary = replay(Recording(path))
+    assert summary.match and summary.frames == whole
+    assert summary.warnings == [
+        f"the file is damaged after its last frame (its summary or footer: reading stopped "
+        f"at byte {after + 9} of {len(golden)}): every frame is whole and was replayed, but "
+        f"other MCAP tools may refuse it; vade-replay {path} -o WHOLE.mcap writes it again "
+        "whole"]
+    from conftest import run_cli
+    result = run_cli("vade-replay", str(path))
+    assert result.returncode == 0 and "damaged after its last frame" in result.stderr
+    # The same damage in the data (its last chunk's length): refused, as before.
+    last, chunk = 8, None
+    while last < at:
+        if golden[last] == 0x06:
+            chunk = last
+        last += 9 + struct.unpack_from("<Q", golden, last + 1)[0]
+    data = bytearray(golden)
+    data[chunk + 1:chunk + 9] = struct.pack("<Q", 2**40)
+    path = tmp_path / "data.mcap"
+    path.write_bytes(bytes(data))
+    result = run_cli("vade-replay", str(path))
+    assert result.returncode == 2 and "complete frames: the data before byte" in result.stderr
+    assert "Traceback" not in result.stderr
+
+
 def _writer_setup():
     from vade_replay.replay import simulate
     session = load(RECORDINGS / "drop_on_table.json")

@@ -533,6 +533,8 @@ class Recording:
         # Cut after its data's end: every frame whole, its summary and footer lost (other
         # MCAP tools want them), read with the frames.
         self.end_lost = False
+        # And where it is not cut there but damaged: the byte its reading stopped at.
+        self.end_damaged: int | None = None
         # Why the run that wrote it stopped before its end, if it did (``STOPPED_METADATA``).
         self.stopped: str | None = None
         # What vade-record warned of when it made it (``WARNINGS_METADATA``), read with the
@@ -681,7 +683,14 @@ class Recording:
                                          frame=exc.frame) from None
                 except _READ_ERRORS as exc:
                     at = stream.tell()
-                    if not (isinstance(exc, (EndOfFile, EOFError)) or at >= size):
+                    if ends[0] and not isinstance(exc, (EndOfFile, EOFError)) and at < size:
+                        # Past its data's end record: every frame is whole, only its
+                        # summary or footer is damaged (a user's trial: one byte changed
+                        # there refused the whole file, as "damaged after 180 complete
+                        # frames" of its 181). Replayed, and said (``end_damaged``).
+                        self.end_damaged = at
+                        complete = False
+                    elif not (isinstance(exc, (EndOfFile, EOFError)) or at >= size):
                         # Damaged, not cut short: the reader stopped inside the file.
                         detail = str(exc) or type(exc).__name__
                         raise RecordingError(

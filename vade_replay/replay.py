@@ -2200,7 +2200,13 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
         # repeated as recorded).
         summary.warnings += [w for w in fallen_past_everything(scene, previous, first_time)
                              if w not in recording.warnings]
-    if recording.end_lost:
+    if recording.end_damaged is not None:
+        summary.warnings.append(
+            "the file is damaged after its last frame (its summary or footer: reading "
+            f"stopped at byte {recording.end_damaged} of {recording.path.stat().st_size}): "
+            "every frame is whole and was replayed, but other MCAP tools may refuse it; "
+            f"vade-replay {recording.path} -o WHOLE.mcap writes it again whole")
+    elif recording.end_lost:
         summary.warnings.append(
             "the file ends after its last frame, short of its end (its summary, footer or "
             "closing bytes: cut short there?): every frame is whole and was replayed, but "
