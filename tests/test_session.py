@@ -288,6 +288,34 @@ def test_one_device_in_metres_and_unlikely_densities_are_warned_of():
     assert make_session(doc).warnings() == []
 
 
+@pytest.mark.parametrize("units, physics, tools, expected", [
+    ("m", {"grab_radius": 15}, [], ["physics.grab_radius is 15 m"]),
+    ("m", {"grab_radius": 0.5, "contact_tolerance": 0.01}, [], []),  # at the limits
+    ("m", {"contact_tolerance": 0.1}, [], ["physics.contact_tolerance is 0.1 m"]),
+    ("mm", {"grab_radius": 15, "contact_tolerance": 0.1}, [], []),    # 15 mm, 0.1 mm
+    ("mm", {"grab_radius": 600}, [], ["physics.grab_radius is 0.6 m"]),
+    ("m", {}, [{"name": "hoist", "max_mass_kg": 5, "grab_radius": 2}],
+     ["tools[0].grab_radius is 2 m"]),
+])
+def test_physics_lengths_too_long_for_what_they_are_are_warned_of(units, physics, tools,
+                                                                   expected):
+    """(A user's trial: ``--set physics.grab_radius=15`` in a metre session, meant as mm,
+    grabbed from 15 m without a word.) A grab radius past half a metre, a contact
+    tolerance past a centimetre, once in metres: warned of, naming the field and the
+    session's unit; a what-if's --set is warned of the same way (``_introduced``)."""
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+    if units == "mm":
+        doc = {**_scaled(doc, 1000.0), "units": "mm"}
+    doc["physics"] = {**doc.get("physics", {}), **physics}
+    if tools:
+        doc["tools"] = tools
+    found = [w for w in make_session(doc).warnings()
+             if "grab_radius is" in w or "contact_tolerance is" in w]
+    assert len(found) == len(expected), found
+    for warning, start in zip(found, expected):
+        assert warning.startswith(start) and f"session's units ({units})" in warning
+
+
 def test_a_typo_of_a_base_or_environment_key_is_warned_of():
     """``fixd`` for ``fixed`` left the base riding the hand without a word (their schema,
     unlike a part's, lets them carry other keys): named, with the key it is close to."""

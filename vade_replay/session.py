@@ -151,6 +151,30 @@ _IDLE_AFTER_S = 60.0
 _IDLE_FACTOR = 10.0
 
 
+# Physics lengths past these (in metres) are most likely written in another unit: a hand
+# reaches for a part a few centimetres off, and contact is a fraction of a millimetre.
+_LENGTHS_AT_MOST_M = {"grab_radius": 0.5, "contact_tolerance": 0.01}
+
+
+def _unlikely_lengths(doc: dict, units: str) -> list[str]:
+    """Physics lengths, and tools' reach, too long for what they are once converted from
+    the session's units (a user's trial: ``--set physics.grab_radius=15`` in a metre
+    session, meant as 15 mm, grabbed from 15 m without a word)."""
+    out = []
+    f = UNIT_TO_M[units]
+    given = [(f"physics.{key}", key, (doc.get("physics") or {}).get(key))
+             for key in _LENGTHS_AT_MOST_M]
+    given += [(f"tools[{i}].grab_radius", "grab_radius", tool.get("grab_radius"))
+              for i, tool in enumerate(doc.get("tools") or [])]
+    for field, key, value in given:
+        if isinstance(value, (int, float)) and not isinstance(value, bool) \
+                and float(value) * f > _LENGTHS_AT_MOST_M[key]:
+            out.append(f"{field} is {float(value) * f:.4g} m: it is in the session's units "
+                       f"({units}); meant as a smaller unit? (a --set value may carry its "
+                       "own: 15mm)")
+    return out
+
+
 # Densities of solids a part is made of, kg/m^3: from foams (~15) to tungsten (19,300).
 _DENSITY_RANGE = (10.0, 25000.0)
 
@@ -363,6 +387,7 @@ class Session:
             if g != 0.0 and not 1.0 <= g <= 30.0:
                 out.append(f"physics.gravity is {g:.4g} m/s^2: it is in the session's units "
                            f"({units}/s^2), so Earth's is {9.81 / UNIT_TO_M[units]:g}")
+        out += _unlikely_lengths(self.doc, units)
         out += _unknown_shape_keys(self.doc)
         out += _shared_constraint_names(self.doc)
         out += _unlikely_densities(self.doc)
