@@ -14,8 +14,8 @@ from typing import Iterator, TextIO
 
 from vade_replay.errors import ConfigError
 from vade_replay.recording import Recording, ensure_writable
-from vade_replay.replay import (ANALYSIS_COLUMNS, WHAT_IF_TOLERANCE, Tolerance, analysis_rows,
-                                apply_overrides, describe_departure, miss_line,
+from vade_replay.replay import (ANALYSIS_COLUMNS, VALUE_UNITS, WHAT_IF_TOLERANCE, Tolerance,
+                                analysis_rows, apply_overrides, describe_departure, miss_line,
                                 parse_tolerance, replay)
 from vade_replay.tables import FRAME_TABLES, STDOUT, FrameTables, TableError, TableFile
 
@@ -112,10 +112,26 @@ def _once_each(paths: list[str]) -> list[str]:
     return out
 
 
+def _no_split_units(args) -> None:
+    """A recording named as a unit that is no file, where a --set or --tolerance is given:
+    the unit of a value, split off its number by a space (a user's trial: ``--set
+    physics.grab_radius=15 mm`` replayed the study with 15 m, then stopped at "mm: no such
+    file"). Refused before anything is replayed."""
+    option = "--set" if args.set else "--tolerance" if args.tolerance else None
+    if option is None:
+        return
+    for path in args.recordings:
+        if path in VALUE_UNITS and not os.path.exists(path):
+            raise ConfigError(f"{path!r} is given as a recording, and is a unit: a value's "
+                              "unit goes with its number, without a space (--set "
+                              f"physics.grab_radius=15mm, --tolerance 1um)", field=option)
+
+
 def main(argv: list[str] | None = None) -> int:
     # Files and options in any order (a study's files after --csv OUT.csv, say).
     args = _parser().parse_intermixed_args(argv)
     args.recordings = _once_each(args.recordings)
+    _no_split_units(args)
     overrides = _overrides(args.set)
     args.tolerance = None if args.tolerance is None else parse_tolerance(args.tolerance)
     if args.tolerance is not None and overrides:

@@ -1216,3 +1216,18 @@ def test_every_set_error_begins_with_the_set_it_names(override):
                      override)
     _assert_clean_error(result)
     assert result.stderr.startswith(f"error: --set {key}: "), result.stderr
+
+
+@pytest.mark.parametrize("args, option", [
+    (["--set", "physics.grab_radius=15", "mm"], "--set"),
+    (["--set", "parts.block.mass=12", "g"], "--set"),
+    (["--tolerance", "1", "um"], "--tolerance"),
+])
+def test_a_unit_split_off_its_value_is_named_before_anything_is_replayed(args, option):
+    """(A user's trial: ``--set physics.grab_radius=15 mm`` replayed with 15 m, then
+    stopped at "mm: no such file".) The unit, taken for a recording, is named as what it is,
+    exit 2, before any replay."""
+    result = run_cli("vade-replay", str(RECORDINGS / "plane_block_wall.mcap"), *args)
+    _assert_clean_error(result, f"error: {option}: '{args[-1]}' is given as a recording, "
+                                "and is a unit", "without a space")
+    assert result.stdout == ""  # nothing replayed

@@ -789,6 +789,9 @@ _WITH_UNIT = re.compile(r"\s*(-?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([A-Za-z
 # Units a --set value may carry: lengths (converted to the session's unit) and masses (kg).
 _LENGTH_UNITS = {**UNIT_TO_M, "cm": 0.01, "um": 1e-6, "µm": 1e-6, "nm": 1e-9}
 _MASS_UNITS = {"kg": 1.0, "g": 1e-3}
+# Every unit a --set or --tolerance value may carry (``cli.replay`` tells one split off
+# its number by a space from a recording's name).
+VALUE_UNITS = frozenset([*_LENGTH_UNITS, *_MASS_UNITS, "rad", "mrad", "urad", "µrad", "deg"])
 
 
 def _is_length(key: str) -> bool:
