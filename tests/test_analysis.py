@@ -604,3 +604,26 @@ def test_a_replay_that_diverges_measures_its_departure_from_there(tmp_path):
     result = run_cli("vade-replay", str(path))
     assert result.returncode == 1
     assert "\nlargest departure since: peg 0.001 m (frame " in result.stdout
+
+
+@pytest.mark.parametrize("name, kinds", [
+    ("gear_tilted_shaft", {"ContactMade"}),                  # blocked, and goes on turning
+    ("shaft_slide_blocked", {"ContactMade", "ModeChanged"}),  # blocked, and rests there
+])
+def test_a_block_is_counted_once_whether_or_not_the_part_then_rests(name, kinds):
+    """``blocked`` counts the frames in which the base stopped a part's slide or turn (a
+    user's trial: the gear on the tilted shaft, blocked in its slide while it went on
+    turning, counted 0): one block a frame, its contact and the mode change it brings
+    being one."""
+    from vade_replay import codec
+    blocked: dict[int, set] = {}
+    for record in Recording(RECORDINGS / f"{name}.mcap").frames():
+        for topic, data in record.derived:
+            if topic.startswith("/events/"):
+                event = codec.decode_event(topic, data)
+                if event.cause == "blocked_by_base":
+                    blocked.setdefault(record.inputs.frame, set()).add(event.kind)
+    assert list(blocked.values()) == [kinds]  # one frame, with these events
+    summary = replay(Recording(RECORDINGS / f"{name}.mcap"))
+    (stats,) = summary.analysis.parts.values()
+    assert stats.blocked == 1 and stats.as_dict()["blocked"] == 1

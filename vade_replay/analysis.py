@@ -27,6 +27,9 @@ class PartStats:
     drops: int = 0              # flights that ended on the table, another object or the base
     slid_off: int = 0           # left the base: off an end or edge
     lifted_off: int = 0         # left the base: the base turned so gravity pulled it off
+    # Times the base stopped its slide or turn (a ``blocked_by_base`` contact): whether it
+    # then rests (a ModeChanged too, in the same frame: one block) or goes on turning (a
+    # user's trial found such a block uncounted, in ``gear_tilted_shaft``).
     blocked: int = 0
     refused_grabs: int = 0      # a hand or a tool closed on it and was refused (too heavy...)
     placed_at_s: float | None = None
@@ -52,6 +55,7 @@ class SessionAnalysis:
     _last_ns: int | None = None
     _mode: dict[str, tuple[str, int]] = field(default_factory=dict)  # part -> (mode, since)
     _last_parts: tuple | None = None  # the last frame's snapshots: unchanged ones are skipped
+    _blocked_at: dict[str, int] = field(default_factory=dict)  # part -> its last block's time
 
     def add(self, record: FrameRecord) -> None:
         t = record.time_ns
@@ -102,9 +106,18 @@ class SessionAnalysis:
             elif event.cause == "gravity_lifts_off":
                 stats.lifted_off += 1
             elif event.cause == "blocked_by_base":
-                stats.blocked += 1
+                self._block(event.part, stats, t)
             if event.to_mode == "PLACED" and stats.placed_at_s is None:
                 stats.placed_at_s = (t - (self._first_ns or 0)) / 1e9
+        elif event.kind == "ContactMade" and event.cause == "blocked_by_base":
+            self._block(event.part, stats, t)
+
+    def _block(self, name: str, stats: PartStats, t: int) -> None:
+        """A block of the part in the frame at ``t``: counted once a frame (its contact and
+        the mode change it brings are one block)."""
+        if self._blocked_at.get(name) != t:
+            stats.blocked += 1
+            self._blocked_at[name] = t
 
     def result(self) -> dict:
         """Per-part statistics, with every state's time closed at the last frame."""
