@@ -8,6 +8,7 @@ from pathlib import Path
 
 from vade_replay import session as session_mod
 from vade_replay.errors import ConfigError
+from vade_replay.recording import ensure_writable
 from vade_replay.replay import miss_line, record
 
 from ._common import EXIT_OK, Progress, not_standard_output, print_json, run
@@ -34,6 +35,8 @@ def main(argv: list[str] | None = None) -> int:
     not_standard_output(args.output, "-o")
     session = session_mod.load(args.session)
     out = Path(args.output) if args.output else Path(Path(args.session).stem + ".mcap")
+    # (Named by its option, as the tables' are: "adir: is a folder" did not say which.)
+    ensure_writable(out, field="-o" if args.output else None)
     _check_output(out, Path(args.session), session)
     progress = Progress("recording", None)
     summary = record(session, out, on_frame=progress.update, replace_other=args.force)

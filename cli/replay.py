@@ -240,6 +240,8 @@ def _check_output_paths(args) -> None:
     not destroy the recording."""
     not_standard_output(args.output, "-o")
     not_standard_output(args.rerun, "--rerun")
+    if args.output and not _is_stdout(args.output):
+        ensure_writable(args.output, field="-o")
     others: list[tuple[str, list]] = [("a recording replayed", args.recordings)]
     for option, given in [("-o", args.output), ("--rerun", args.rerun), *_table_options(args)]:
         if not given:
@@ -247,7 +249,8 @@ def _check_output_paths(args) -> None:
         target = _where(given)
         for other, paths in others:
             if any(p and _where(p) == target for p in paths):
-                what = "the table" if option in ("--csv", "--events", "--poses") else option
+                what = {"-o": "the regenerated recording", "--rerun": "the review"}.get(
+                    option, "the table")
                 place = "standard output" if _is_stdout(given) else given
                 raise ConfigError(f"refusing to write {what} to {place}, which is also "
                                   f"{other}", field=option)

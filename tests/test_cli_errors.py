@@ -981,12 +981,27 @@ def test_a_review_s_place_holding_other_data_is_refused_in_plain_words(tmp_path)
     assert notes.read_text() == "my notes on this session\n"
 
 
-@pytest.mark.parametrize("option", ["--rerun", "--events", "--csv"])
-def test_a_folder_given_for_an_output_names_the_option(tmp_path, option):
-    """(A user's trial: ``--rerun out`` said "out: is a folder" without the option.)"""
-    result = run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"), option,
-                     str(tmp_path))
+@pytest.mark.parametrize("command, option", [
+    ("vade-replay", "--rerun"), ("vade-replay", "--events"), ("vade-replay", "--csv"),
+    ("vade-replay", "-o"), ("vade-record", "-o")])
+def test_a_folder_given_for_an_output_names_the_option(tmp_path, command, option):
+    """(Users' trials: ``--rerun out``, and later ``-o out``, said "out: is a folder"
+    without the option.)"""
+    given = str(RECORDINGS / ("drop_on_table.mcap" if command == "vade-replay"
+                              else "drop_on_table.json"))
+    result = run_cli(command, given, option, str(tmp_path))
     _assert_clean_error(result, f"{tmp_path}: {option}: is a folder; give a file name")
+
+
+@pytest.mark.parametrize("option, what", [("-o", "the regenerated recording"),
+                                          ("--rerun", "the review"), ("--csv", "the table")])
+def test_an_output_over_the_recording_replayed_says_what_it_would_write(option, what):
+    """(A user's trial: "-o: refusing to write -o to s1.mcap".) It names what would have
+    been written there."""
+    golden = str(RECORDINGS / "drop_on_table.mcap")
+    result = run_cli("vade-replay", golden, option, golden)
+    _assert_clean_error(result, f"error: {option}: refusing to write {what} to {golden}, "
+                                "which is also a recording replayed")
 
 
 @pytest.mark.parametrize("where, typo, meant", [
