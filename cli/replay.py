@@ -636,6 +636,23 @@ def _physics_note(changes: dict, path: str, *, what_if: bool = False) -> str:
 
 
 def _one(args, path: str, overrides: dict[str, str], outputs: dict[str, TableFile]) -> int:
+    try:
+        return _one_replayed(args, path, overrides, outputs)
+    except TableError:
+        raise
+    except VadeError as exc:
+        if args.json:
+            # As several recordings' JSON has it (a user's trial: one unusable recording
+            # printed no JSON at all, several an entry for it); the error line and exit 2
+            # as ever.
+            if exc.file is None:
+                exc.file = path
+            print_json({"recording": path, "error": exc.describe()})
+        raise
+
+
+def _one_replayed(args, path: str, overrides: dict[str, str],
+                  outputs: dict[str, TableFile]) -> int:
     recording = Recording(path)
     if args.rerun:
         ensure_writable(args.rerun, field="--rerun")

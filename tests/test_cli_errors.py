@@ -1246,3 +1246,15 @@ def test_a_unit_split_off_its_value_is_named_before_anything_is_replayed(args, o
     _assert_clean_error(result, f"error: {option}: '{args[-1]}' is given as a recording, "
                                 "and is a unit", "without a space")
     assert result.stdout == ""  # nothing replayed
+
+
+def test_one_unusable_recording_with_json_prints_its_entry_as_several_do(tmp_path):
+    """(A user's trial: ``--json`` printed no JSON for one unusable recording, and an entry
+    for it among several.) The same entry either way; the error line and exit 2 as ever."""
+    missing = str(tmp_path / "missing.mcap")
+    one = run_cli("vade-replay", missing, "--json")
+    _assert_clean_error(one, f"{missing}: no such file")
+    several = run_cli("vade-replay", missing, str(RECORDINGS / "drop_on_table.mcap"), "--json")
+    assert several.returncode == 2
+    assert json.loads(one.stdout) == json.loads(several.stdout)[0] == {
+        "recording": missing, "error": f"{missing}: no such file"}
