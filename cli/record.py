@@ -39,10 +39,21 @@ def main(argv: list[str] | None = None) -> int:
     ensure_writable(out, field="-o" if args.output else None)
     _check_output(out, Path(args.session), session)
     progress = Progress("recording", None)
-    summary = record(session, out, on_frame=progress.update, replace_other=args.force)
+    early: list[str] = []
+
+    def warn_early(warnings: list[str]) -> None:
+        # Before the first frame (a user's trial: a session of 100,000 s, "meant less?",
+        # said so only once the run ended; Ctrl-C'd, never).
+        early.extend(warnings)
+        for warning in warnings:
+            print(f"warning: {args.session}: {warning}", file=sys.stderr)
+
+    summary = record(session, out, on_frame=progress.update, replace_other=args.force,
+                     on_warnings=warn_early)
     progress.close()
     for warning in summary.warnings:
-        print(f"warning: {args.session}: {warning}", file=sys.stderr)
+        if warning not in early:
+            print(f"warning: {args.session}: {warning}", file=sys.stderr)
     if args.json:
         print_json(summary.to_dict() | {"output": str(out)})
     else:

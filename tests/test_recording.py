@@ -367,8 +367,8 @@ def test_an_interrupted_recording_says_where_its_frames_are(tmp_path, capsys):
     kept_bytes = partial.read_bytes()
     again = run_cli("vade-record", str(RECORDINGS / "drop_on_table.json"), "-o", str(out))
     assert again.returncode == 2 and "Traceback" not in again.stderr
-    assert again.stderr.startswith(f"error: {out}: {partial} holds the frames an interrupted "
-                                   "run kept"), again.stderr
+    assert again.stderr.startswith(f"error: {out}: {partial} holds the frames a run that "
+                                   "stopped early kept"), again.stderr
     assert "--force" in again.stderr
     replayed = run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"), "-o", str(out))
     assert replayed.returncode == 2 and str(partial) in replayed.stderr
@@ -506,3 +506,25 @@ def test_where_locks_are_refused_a_recording_is_written_unlocked(tmp_path, monke
         writer.write_frame(frame)
     writer.close(complete_as=tmp_path / "x.mcap")
     assert len(list(Recording(tmp_path / "x.mcap").frames())) == len(frames)
+
+
+def test_a_recording_s_warnings_known_before_its_first_frame_are_said_then(tmp_path):
+    """(A user's trial: a session of 100,000 s, "meant less?", said so only when the run
+    ended, and never when it was Ctrl-C'd.) The session's warnings come before the first
+    frame, and the command prints each once."""
+    from conftest import run_cli
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+    doc["tracker"]["duration_s"] = 100.0
+    session_path = tmp_path / "long.json"
+    session_path.write_text(json.dumps(doc))
+    session = load(session_path)
+    order = []
+    summary = record(session, tmp_path / "a.mcap",
+                     on_warnings=lambda warnings: order.append(("warnings", warnings)),
+                     on_frame=lambda _: order.append("frame") if len(order) < 3 else None)
+    assert order[0][0] == "warnings" and order[1:] == ["frame", "frame"]
+    (warning,) = order[0][1]
+    assert "meant less?" in warning and summary.warnings == [warning]
+    result = run_cli("vade-record", str(session_path), "-o", str(tmp_path / "b.mcap"))
+    assert result.returncode == 0 and result.stderr.count("meant less?") == 1
+    assert result.stderr.startswith(f"warning: {session_path}: tracker.duration_s")

@@ -1006,9 +1006,9 @@ def refuse_replacing(out: str | Path, session: Session, scene: Scene) -> str | N
     if kept is not None:
         # (A user's trial: an interrupted take's frames, kept there, were written over by
         # the next run to the same output without a word.)
-        raise ConfigError(f"{kept} holds the frames an interrupted run kept ({_size(kept)}); "
-                          "move it away to keep them (it replays as it is), or pass --force "
-                          "to write over it", file=str(out))
+        raise ConfigError(f"{kept} holds the frames a run that stopped early kept "
+                          f"({_size(kept)}); move it away to keep them (it replays as it "
+                          "is), or pass --force to write over it", file=str(out))
     if not path.exists() or in_place(path):
         return None
     try:
@@ -1071,13 +1071,17 @@ def _changed_fields(theirs: dict, ours: dict, *, most: int = 6) -> list[str]:
 
 def record(session: Session, out: str | Path, *,
            on_frame: Callable[[FrameRecord], None] | None = None,
-           replace_other: bool = True) -> RunSummary:
+           replace_other: bool = True,
+           on_warnings: Callable[[list[str]], None] | None = None) -> RunSummary:
     """Run a session's tracker stream and write the recording to ``out``.
 
     The file is written as ``out.partial`` and renamed when complete. If the run fails part
     way, the partial file is closed properly (readable, indexed) and kept, and the error is
     raised with the frame it happened at. With ``replace_other`` False, a file at ``out``
-    other than this recording made again is refused first (``refuse_replacing``).
+    other than this recording made again is refused first (``refuse_replacing``). With
+    ``on_warnings``, the warnings known before the first frame (the session's and its
+    scene's) are given to it then: a long run's slip is seen as it starts, and stopped
+    (the summary's ``warnings`` hold them too, with those found as it ran).
     """
     scene = session.build_scene()
     if not replace_other:
@@ -1091,6 +1095,8 @@ def record(session: Session, out: str | Path, *,
                                                                       session.doc),
                          units=session.doc.get("units", "m"),
                          masses_kg={p.name: p.mass_kg for p in scene.parts})
+    if on_warnings is not None and summary.warnings:
+        on_warnings(list(summary.warnings))
     first_time = None
     open_misses: dict[str, int] = {}  # part -> its miss still in flight (``landed``)
     frame = None
