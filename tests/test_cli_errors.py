@@ -1021,12 +1021,14 @@ def test_a_misspelt_key_is_named_with_the_one_meant(tmp_path, where, typo, meant
 @pytest.mark.parametrize("extents, given, warned", [
     ([40.0, 40.0, 80.0], None, "40 x 40 x 80 m across, too large"),   # CAD in mm
     ([40.0, 40.0, 80.0], "mm", None),    # its units given: as meant
+    ([40.0, 40.0, 80.0], "m", "40 x 40 x 80 m across, too large"),    # given, and wrong
     ([0.04, 0.04, 0.08], None, None)])   # a peg of 4 x 4 x 8 cm
 def test_a_mesh_in_other_units_than_the_session_is_warned_of_first(tmp_path, extents, given,
                                                                  warned):
     """(A user's trial: a peg drawn in millimetres in a metre session was warned of only as
-    starting 6e+04 mm inside the table, and its grab refused as too heavy. One drawn in
-    metres in a millimetre session is refused as under a millimetre across, scene.py.)"""
+    starting 6e+04 mm inside the table, and its grab refused as too heavy; an engineer's,
+    the same with the wrong units given, "units": "m". One drawn in metres in a millimetre
+    session is refused as under a millimetre across, scene.py.)"""
     import trimesh
     (tmp_path / "peg.stl").write_bytes(
         trimesh.creation.box(extents=extents).export(file_type="stl"))
@@ -1039,8 +1041,8 @@ def test_a_mesh_in_other_units_than_the_session_is_warned_of_first(tmp_path, ext
     if warned is None:
         assert not mesh, result.stderr
     else:
-        assert len(mesh) == 1 and warned in mesh[0] and "give shape.units" in mesh[0], \
-            result.stderr
+        advice = "are those units right?" if given else "give shape.units"
+        assert len(mesh) == 1 and warned in mesh[0] and advice in mesh[0], result.stderr
         assert lines.index(mesh[0]) == 0  # before what it causes (inside the table, ...)
 
 
@@ -1258,3 +1260,4 @@ def test_one_unusable_recording_with_json_prints_its_entry_as_several_do(tmp_pat
     assert several.returncode == 2
     assert json.loads(one.stdout) == json.loads(several.stdout)[0] == {
         "recording": missing, "error": f"{missing}: no such file"}
+

@@ -1398,12 +1398,22 @@ def mesh_scale_warnings(scene: Scene, doc: dict | None) -> list[str]:
     for where, item in listed:
         shape, body = item.get("shape"), bodies.get(str(item.get("name")))
         meshes = _unitless_meshes(shape, f"{where}.shape")
-        if not meshes or body is None:
+        given = _meshes_with_units(shape, f"{where}.shape")
+        if not (meshes or given) or body is None:
             continue
         size = [body.bbox_max[k] - body.bbox_min[k] for k in range(3)]
         if max(size) <= _MESH_LARGEST_M:
             continue
         across = " x ".join(f"{extent / UNIT_TO_M[units]:.3g}" for extent in size)
+        if not meshes:
+            # Every mesh gives its units, and the part is still that large (an engineer's
+            # trial: an STL drawn in mm given "units": "m" made a 50 m pin of 4e7 kg,
+            # seen only through what followed: a misfit, a sunk part, a refused grab).
+            named = ", ".join(f"{at} ({name!r} in {unit})" for at, name, unit in given)
+            out.append(f"{where}.shape: the part is {across} {units} across, too large for "
+                       f"a part of an assembly, from meshes whose units are given: {named}: "
+                       "are those units right? (its mass and inertia follow its size)")
+            continue
         if len(meshes) == 1 and meshes[0][0] == f"{where}.shape":
             out.append(f"{where}.shape: the mesh {meshes[0][1]!r} is {across} {units} "
                        "across, too large for a part of an assembly: drawn in millimetres? "
@@ -1429,6 +1439,18 @@ def _unitless_meshes(shape, at: str) -> list[tuple[str, str]]:
     if shape.get("type") == "compound" and isinstance(shape.get("children"), list):
         return [found for i, child in enumerate(shape["children"])
                 for found in _unitless_meshes(child, f"{at}.children[{i}]")]
+    return []
+
+
+def _meshes_with_units(shape, at: str) -> list[tuple[str, str, str]]:
+    """The mesh files of a shape that give their ``units``: ``(where, file, units)``."""
+    if not isinstance(shape, dict):
+        return []
+    if shape.get("type") == "mesh":
+        return [(at, str(shape.get("file")), str(shape["units"]))] if "units" in shape else []
+    if shape.get("type") == "compound" and isinstance(shape.get("children"), list):
+        return [found for i, child in enumerate(shape["children"])
+                for found in _meshes_with_units(child, f"{at}.children[{i}]")]
     return []
 
 
@@ -1594,7 +1616,9 @@ def scene_warnings(scene: Scene, collision: CollisionWorld,
     document, numbers the parts as the session lists them (the scene sorts them by name)."""
     listed = {str(p.get("name")): i for i, p in enumerate((doc or {}).get("parts") or [])}
     index = {b.name: listed.get(b.name, k) for k, b in enumerate(scene.parts)}
-    out = []
+    # A mesh in other units first: what follows from it (a misfit, a part inside the base
+    # or the table) is warned of after it.
+    out = mesh_scale_warnings(scene, doc)
     counters = dict(collision.stats)  # a run's counters count the run's own queries
     for body in scene.parts:
         i = index[body.name]
@@ -1695,7 +1719,6 @@ def scene_warnings(scene: Scene, collision: CollisionWorld,
                        f"final pose{what}, within physics.contact_tolerance "
                        f"({tol * 1e3:.2g} mm): it is blocked there; set contact_tolerance "
                        f"under {clear * 1e3:.2g} mm (in the session's units){or_radial}")
-    out += mesh_scale_warnings(scene, doc)
     # What a resting part can lie on: the environment, a fixed base, another part.
     fixed = [_world_box(b, b.initial_pose) for b in scene.environment]
     if scene.base is not None and scene.base_fixed:
