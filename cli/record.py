@@ -79,9 +79,16 @@ def _outcome_lines(analysis: dict, doc: dict) -> list[str]:
         out.append("refused grabs: " + ", ".join(f"{cause} {n}" for cause, n in
                                                  sorted(refused.items()))
                    + (f" ({', '.join(who)})" if who else ""))
+    parts = analysis["parts"]
+    empty = (analysis.get("refused_grabs") or {}).get("nothing_in_reach", 0)
+    if empty and parts and not any(part.get("grabs") for part in parts.values()):
+        # (An engineer's trial: a hand scripted 110 mm above the part took nothing, and
+        # the run said only "never placed".)
+        out.append(f"no part was grabbed: a hand closed {empty} "
+                   f"time{'s' if empty != 1 else ''} with nothing in reach (a part's box "
+                   "within physics.grab_radius of the hand; --events lists each)")
     final = [str(p.get("name")) for p in doc.get("parts") or []
              if (p.get("assembly") or {}).get("final_pose") is not None]
-    parts = analysis["parts"]
     never = [name for name in final
              if (parts.get(name) or {}).get("placed_at_s") is None
              and not ((parts.get(name) or {}).get("time_in_state_s") or {}).get("PLACED")]

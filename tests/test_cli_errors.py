@@ -1261,3 +1261,18 @@ def test_one_unusable_recording_with_json_prints_its_entry_as_several_do(tmp_pat
     assert json.loads(one.stdout) == json.loads(several.stdout)[0] == {
         "recording": missing, "error": f"{missing}: no such file"}
 
+
+def test_a_run_in_which_no_hand_took_a_part_says_so(tmp_path):
+    """(An engineer's trial: a hand scripted 110 mm above its part closed on nothing, and
+    the run said only "never placed", or nothing.) The count of closes on nothing is said
+    when no part was grabbed at all; the golden's own run does not say it."""
+    doc = _doc()
+    ok = run_cli("vade-record", str(_write(tmp_path, doc)), "-o", str(tmp_path / "a.mcap"))
+    assert ok.returncode == 0 and "no part was grabbed" not in ok.stdout
+    for kf in doc["tracker"]["devices"]["right_hand"]:
+        if "position" in kf:
+            kf["position"][2] += 0.3
+    missed = run_cli("vade-record", str(_write(tmp_path, doc)), "-o", str(tmp_path / "b.mcap"))
+    assert missed.returncode == 0
+    assert ("no part was grabbed: a hand closed 1 time with nothing in reach (a part's box "
+            "within physics.grab_radius of the hand; --events lists each)") in missed.stdout

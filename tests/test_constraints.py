@@ -641,3 +641,36 @@ def test_a_block_lying_in_an_open_tray_is_not_taken_for_one_inside_it(tmp_path):
     scene = session.build_scene()
     assert not [w for w in scene_warnings(scene, CollisionWorld(scene), session.doc)
                 if "into each other" in w or "inside" in w]
+
+
+def test_a_final_pose_away_from_the_base_and_a_final_tolerance_under_contact_are_warned_of():
+    """From an engineer's trial: a final pose written in world coordinates (~0.7 m past the
+    bore's end) and a final tolerance of 0.01 mm, under the 0.1 mm contact tolerance (the
+    base stops a part up to that far short), each left the part "never placed" without a
+    reason. Each is named; the golden's own session has neither."""
+    from vade_replay.collision import CollisionWorld
+    from vade_replay.replay import scene_warnings
+    doc = json.loads((RECORDINGS / "shaft_placed.json").read_text())
+
+    def warnings(d):
+        scene = session_mod.parse(json.dumps(d).encode(), {}, source="s.json").build_scene()
+        return scene_warnings(scene, CollisionWorld(scene))
+
+    assert warnings(doc) == []
+    assembly = doc["parts"][0]["assembly"]
+    seated = list(assembly["final_pose"]["position"])
+    assembly["final_pose"]["position"] = [seated[0], seated[1], seated[2] + 0.745]
+    (far,) = warnings(doc)
+    assert far.startswith("parts[0].assembly.final_pose: puts sleeve ")
+    assert far.endswith("mm from the base part: a final pose is in the base's frame, not "
+                        "the world's; is it?")
+    assert 600 < float(far.split("puts sleeve ")[1].split(" mm")[0]) < 800
+    assembly["final_pose"]["position"] = [seated[0], seated[1], seated[2] + 0.005]
+    assert warnings(doc) == []  # 5 mm up the shaft: on it, not away from the base
+    assembly["final_pose"]["position"] = seated
+    assembly["final_tolerance"]["distance"] = 1e-5
+    (tight,) = warnings(doc)
+    assert tight == ("parts[0].assembly.final_tolerance.distance (0.01 mm) is under "
+                     "physics.contact_tolerance (0.1 mm): a part the base stops comes to rest "
+                     "up to that far short of where it touches, so it may never come within "
+                     "it of its final pose")

@@ -245,6 +245,13 @@ def test_the_outcome_lines_leave_out_empty_hands_and_parts_placed_from_the_start
                                       "time_in_state_s": {"PLACED": 4.0}},
                           "sleeve": {"placed_at_s": None, "refused_grabs": 0,
                                      "time_in_state_s": {"STATIC": 4.0}}}}
+    # Not a refused grab; where no part was grabbed at all, said as what it is (an
+    # engineer's trial: a hand scripted above its part).
+    assert _outcome_lines(analysis, doc) == [
+        "no part was grabbed: a hand closed 2 times with nothing in reach (a part's box "
+        "within physics.grab_radius of the hand; --events lists each)",
+        "never placed: sleeve (of 2 with a final pose)"]
+    analysis["parts"]["sleeve"]["grabs"] = 1
     assert _outcome_lines(analysis, doc) == ["never placed: sleeve (of 2 with a final pose)"]
     analysis["refused_grabs"]["too_heavy_for_one_hand"] = 1
     analysis["parts"]["sleeve"]["refused_grabs"] = 1

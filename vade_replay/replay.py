@@ -1279,6 +1279,9 @@ def _opened(misses: list[dict], open_misses: dict[str, int], record: FrameRecord
 _FLOATING_M = 0.005
 # A final pose this far into the base (along its constraint) is said to be unreachable (m).
 _INSIDE_BASE_M = 0.001
+# A final pose that puts its part farther than this (or than half the part's reach) from
+# the base part: not an assembled place (``scene_warnings``).
+_FINAL_CLEAR_M = 0.01
 
 
 def _world_box(body, pose) -> tuple[list[float], list[float]]:
@@ -1657,6 +1660,23 @@ def scene_warnings(scene: Scene, collision: CollisionWorld,
         if assembly is None or assembly.final_pose is None or not assembly.mates:
             continue
         final = assembly.final_pose
+        tol = scene.physics.contact_tolerance
+        if assembly.final_distance < tol:
+            # (An engineer's trial: final_tolerance 0.01 mm never placed a pin the base
+            # stopped 0.05 mm short of its seat, and nothing said why.)
+            out.append(f"parts[{i}].assembly.final_tolerance.distance "
+                       f"({assembly.final_distance * 1e3:.3g} mm) is under "
+                       f"physics.contact_tolerance ({tol * 1e3:.3g} mm): a part the base "
+                       "stops comes to rest up to that far short of where it touches, so "
+                       "it may never come within it of its final pose")
+        clear = collision.distance_to_base(body.name, final)
+        if clear > max(_FINAL_CLEAR_M, 0.5 * body.reach_from_origin):
+            # (An engineer's trial: a final pose written in world coordinates, 740 mm past
+            # the bore's end, was "never placed" without a reason.)
+            out.append(f"parts[{i}].assembly.final_pose: puts {body.name} "
+                       f"{clear * 1e3:.3g} mm from the base part: a final pose is in the "
+                       "base's frame, not the world's; is it?")
+            continue
         # With final_tolerance.angle_deg 180 the orientation is not asked for: a part on the
         # constraint reaches the pose's place whatever its turn (and is then turned to it).
         any_turn = assembly.final_angle >= math.pi
