@@ -120,8 +120,9 @@ def _no_split_units(args) -> None:
     option = "--set" if args.set else "--tolerance" if args.tolerance else None
     if option is None:
         return
+    units = {unit.lower() for unit in VALUE_UNITS}
     for path in args.recordings:
-        if path in VALUE_UNITS and not os.path.exists(path):
+        if path.lower() in units and not os.path.exists(path):  # ("15 MM" too)
             raise ConfigError(f"{path!r} is given as a recording, and is a unit: a value's "
                               "unit goes with its number, without a space (--set "
                               f"physics.grab_radius=15mm, --tolerance 1um)", field=option)
@@ -637,35 +638,30 @@ def _physics_note(changes: dict, path: str, *, what_if: bool = False) -> str:
 
 def _one(args, path: str, overrides: dict[str, str], outputs: dict[str, TableFile]) -> int:
     try:
-        return _one_replayed(args, path, overrides, outputs)
+        recording = Recording(path)
+        if args.rerun:
+            ensure_writable(args.rerun, field="--rerun")
+        progress = Progress("replaying", recording.frame_count)
+        tables = FrameTables(path, _frame_outputs(outputs), header=True)
+
+        def on_frame(item) -> None:
+            progress.update()
+            tables(item)
+
+        summary = replay(recording, overrides=overrides, out=args.output, on_frame=on_frame,
+                         replace_other=args.force,
+                         as_recorded=args.as_recorded, tolerance=args.tolerance)
     except TableError:
         raise
     except VadeError as exc:
         if args.json:
             # As several recordings' JSON has it (a user's trial: one unusable recording
             # printed no JSON at all, several an entry for it); the error line and exit 2
-            # as ever.
+            # as ever. (Only here, before its summary: a review's one JSON document.)
             if exc.file is None:
                 exc.file = path
             print_json({"recording": path, "error": exc.describe()})
         raise
-
-
-def _one_replayed(args, path: str, overrides: dict[str, str],
-                  outputs: dict[str, TableFile]) -> int:
-    recording = Recording(path)
-    if args.rerun:
-        ensure_writable(args.rerun, field="--rerun")
-    progress = Progress("replaying", recording.frame_count)
-    tables = FrameTables(path, _frame_outputs(outputs), header=True)
-
-    def on_frame(item) -> None:
-        progress.update()
-        tables(item)
-
-    summary = replay(recording, overrides=overrides, out=args.output, on_frame=on_frame,
-                     replace_other=args.force,
-                     as_recorded=args.as_recorded, tolerance=args.tolerance)
     progress.close()
     _warn(path, summary)
     if args.json:

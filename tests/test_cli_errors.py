@@ -1221,6 +1221,7 @@ def test_tracker_time_going_backwards_is_refused_naming_the_frame(tmp_path):
     "physics.contact_tolerance=3kg",      # a unit of the wrong kind
     "physics.contact_tolerance=3zz",      # an unknown unit
     "physics.contact_tolerance=1e400",    # not finite
+    "physics.contact_tolerance=1e400mm",  # not finite once converted
     "parts.nope.mass=1",                  # no such part
     "tools.hoist=1",                      # a tool's key without its field
 ])
@@ -1239,6 +1240,7 @@ def test_every_set_error_begins_with_the_set_it_names(override):
     (["--set", "physics.grab_radius=15", "mm"], "--set"),
     (["--set", "parts.block.mass=12", "g"], "--set"),
     (["--tolerance", "1", "um"], "--tolerance"),
+    (["--set", "physics.grab_radius=15", "MM"], "--set"),
 ])
 def test_a_unit_split_off_its_value_is_named_before_anything_is_replayed(args, option):
     """(A user's trial: ``--set physics.grab_radius=15 mm`` replayed with 15 m, then

@@ -376,6 +376,12 @@ def test_an_interrupted_recording_says_where_its_frames_are(tmp_path, capsys):
     forced = run_cli("vade-record", str(RECORDINGS / "drop_on_table.json"), "-o", str(out),
                      "--force")
     assert forced.returncode == 0 and out.exists() and not partial.exists()
+    # What is not a recording there is not called one (a review), and is kept all the same.
+    partial.write_text("my notes\n")
+    junk = run_cli("vade-record", str(RECORDINGS / "drop_on_table.json"), "-o", str(out))
+    assert junk.returncode == 2 and (f"{partial} holds something that is not a recording "
+                                     "(9 bytes)") in junk.stderr
+    assert partial.read_text() == "my notes\n"
 
 
 def test_a_recording_cut_in_its_index_keeps_every_frame(tmp_path):
@@ -395,9 +401,9 @@ def test_a_recording_cut_in_its_index_keeps_every_frame(tmp_path):
         summary = replay(Recording(path))
         assert summary.match and summary.warnings == [
             f"the file ends after its last frame, short of its end (its summary, footer or "
-            f"closing bytes: cut short there?): every frame is whole and was replayed, but "
-            f"other MCAP tools may refuse it; vade-replay {path} -o WHOLE.mcap writes it "
-            "again whole"]
+            f"closing bytes missing or unreadable: cut short there?): every frame is whole "
+            f"and was replayed, but other MCAP tools may refuse it; vade-replay {path} -o "
+            "WHOLE.mcap writes it again whole"]
     whole_file = Recording(RECORDINGS / "drop_on_table.mcap")
     assert len(list(whole_file.frames())) == whole and not whole_file.end_lost
     assert replay(whole_file).warnings == []
@@ -528,3 +534,29 @@ def test_a_recording_s_warnings_known_before_its_first_frame_are_said_then(tmp_p
     result = run_cli("vade-record", str(session_path), "-o", str(tmp_path / "b.mcap"))
     assert result.returncode == 0 and result.stderr.count("meant less?") == 1
     assert result.stderr.startswith(f"warning: {session_path}: tracker.duration_s")
+
+
+@pytest.mark.parametrize("later_damage", [False, True])
+def test_a_chunk_damaged_into_a_data_end_is_damage_not_the_file_s_end(tmp_path, later_damage):
+    """(A review: a chunk's opcode changed to the data's end record's made the frames after
+    it vanish, a third of the recording replayed as a match without a word; with damage in
+    a later chunk too, that damage was taken for the summary's, "every frame is whole".)
+    Data after an end record is damage: refused, exit 2, naming it."""
+    import struct
+    from conftest import run_cli
+    golden = (RECORDINGS / "shaft_placed.mcap").read_bytes()
+    chunks, at = [], 8
+    while golden[at] != 0x0F:
+        if golden[at] == 0x06:
+            chunks.append(at)
+        at += 9 + struct.unpack_from("<Q", golden, at + 1)[0]
+    data = bytearray(golden)
+    data[chunks[1]] = 0x0F  # a chunk in the middle read as the data's end
+    if later_damage:
+        data[chunks[2] + 100] ^= 0xFF
+    path = tmp_path / "false_end.mcap"
+    path.write_bytes(bytes(data))
+    result = run_cli("vade-replay", str(path))
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert "after its data's end record" in result.stderr, result.stderr
+    assert result.stderr.startswith(f"error: {path}: damaged after ")

@@ -160,6 +160,21 @@ _RECORD_SIZE_LIMIT = 4 * 2**30  # StreamReader's default: a larger record is dam
 _INDEX_HEAD = struct.Struct("<HI")  # a message index: channel id, byte length of entries
 
 
+class DataAfterEnd(McapError):
+    """A record of the data section (a chunk, a message, its index, an attachment, metadata)
+    after the data's end record: that "end" is damage (a chunk's opcode changed to it), and
+    what follows it is not the summary (a review: damage in a later chunk was then replayed
+    as a summary damaged after every frame, a third of the frames said to be all)."""
+
+
+# What only the data section holds (the summary repeats schemas and channels, and indexes).
+# Not a message index: it follows a chunk, which is what shows (a damaged footer's opcode
+# read as an index is summary damage, and the records after a false end are a chunk's
+# indexes, then a chunk or the true end).
+_DATA_ONLY = frozenset({Opcode.CHUNK, Opcode.MESSAGE, Opcode.ATTACHMENT, Opcode.METADATA,
+                        Opcode.HEADER, Opcode.DATA_END})
+
+
 def _records(stream) -> Iterator[Header | Attachment | Chunk | Channel | Message | Metadata
                                    | DataEnd | Footer]:
     """The header, attachments, chunks, channels, unchunked messages, metadata, data end and
@@ -174,11 +189,16 @@ def _records(stream) -> Iterator[Header | Attachment | Chunk | Channel | Message
     ``EndOfFile``; damage is what the library's reading of a record raises."""
     data = ReadDataStream(stream)
     read_magic(data)
+    ended = False  # the data's end record read
     while True:
         opcode = data.read1()
         length = data.read8()
         if length > _RECORD_SIZE_LIMIT:
             raise RecordLengthLimitExceeded(opcode, length, _RECORD_SIZE_LIMIT)
+        if ended and opcode in _DATA_ONLY:
+            raise DataAfterEnd(f"a record of the recording's data (opcode {opcode:#04x}) after "
+                               "its data's end record")
+        ended = ended or opcode == Opcode.DATA_END
         if opcode == Opcode.MESSAGE_INDEX:
             # As MessageIndex.read reads it, its entries taken as one block: the same bytes
             # consumed (past the record's end too, where a damaged head says so).
@@ -328,7 +348,10 @@ def left_partial(out: str | Path) -> Path | None:
     try:
         if not stat.S_ISREG(os.stat(partial).st_mode) or os.stat(partial).st_size == 0:
             return None
-        fd = os.open(partial, os.O_RDONLY)
+        try:
+            fd = os.open(partial, os.O_RDONLY)
+        except PermissionError:
+            fd = os.open(partial, os.O_WRONLY)  # (one we may write but not read)
     except OSError:
         return None
     try:
@@ -342,6 +365,16 @@ def left_partial(out: str | Path) -> Path | None:
         return partial
     finally:
         os.close(fd)  # (and the lock with it)
+
+
+def holds_recording(path: Path) -> bool | None:
+    """Whether a file begins as a recording does (MCAP's magic); None where it cannot be
+    read."""
+    try:
+        with open(path, "rb") as stream:
+            return stream.read(8) == MCAP_MAGIC + b"0\r\n"
+    except OSError:
+        return None
 
 
 def complete_output(partial: Path, target: Path | None) -> None:
@@ -683,7 +716,8 @@ class Recording:
                                          frame=exc.frame) from None
                 except _READ_ERRORS as exc:
                     at = stream.tell()
-                    if ends[0] and not isinstance(exc, (EndOfFile, EOFError)) and at < size:
+                    if ends[0] and at < size \
+                            and not isinstance(exc, (EndOfFile, EOFError, DataAfterEnd)):
                         # Past its data's end record: every frame is whole, only its
                         # summary or footer is damaged (a user's trial: one byte changed
                         # there refused the whole file, as "damaged after 180 complete

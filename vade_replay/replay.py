@@ -34,8 +34,8 @@ from .collision import SKIP_COAXIAL, SKIP_COPLANAR, CollisionWorld
 from .errors import ConfigError, RecordingError, SessionError, VadeError
 from .frames import FrameRecord, TrackerFrame
 from .modes import Cause, Mode
-from .recording import (RecordedFrame, Recording, RecordingWriter, in_place, left_partial,
-                        package_versions, partial_output, physics_metadata)
+from .recording import (RecordedFrame, Recording, RecordingWriter, holds_recording, in_place,
+                        left_partial, package_versions, partial_output, physics_metadata)
 from .scene import (LENGTH_FIELDS, PAPER_DEFAULTS, UNIT_TO_M, Scene, even_inertia_trace,
                     physics_from_doc)
 from .session import _DENSITY_RANGE, Session, load_schema, parse, strict_json, validate_physics
@@ -832,6 +832,14 @@ def _with_unit(text: str, units: dict[str, float], default: str, *, field: str) 
         raise ConfigError(f"{text.strip()!r} is not a number", field=field) from None
 
 
+def _finite_text(value: float, text: str, key: str) -> str:
+    """A converted value as JSON text; one past a float's range (``1e400mm``) refused as
+    a bare one is (a review: it read as the string 'inf', "not of type 'number'")."""
+    if not math.isfinite(value):
+        raise ConfigError(f"{text} is not a finite number", field=f"--set {key}")
+    return repr(value)
+
+
 def _in_session_units(key: str, text: str, units: str) -> str:
     """``15mm``, ``1.5cm``, ``0.6 in``, ``0.015m``: a length in its own unit, as the
     session's unit writes it (a study's --set then means one length in sessions of mm and
@@ -845,11 +853,12 @@ def _in_session_units(key: str, text: str, units: str) -> str:
         if not _is_length(key):
             raise ConfigError(f"{text!r} has a length unit, and this is not a length",
                               field=f"--set {key}")
-        return repr(float(number) * _LENGTH_UNITS[unit] / UNIT_TO_M[units])
+        return _finite_text(float(number) * _LENGTH_UNITS[unit] / UNIT_TO_M[units], text, key)
     if unit in _MASS_UNITS:
         if not _is_mass(key):
-            raise ConfigError(f"{text!r} has a mass unit, and this is not a mass", field=f"--set {key}")
-        return repr(float(number) * _MASS_UNITS[unit])
+            raise ConfigError(f"{text!r} has a mass unit, and this is not a mass",
+                              field=f"--set {key}")
+        return _finite_text(float(number) * _MASS_UNITS[unit], text, key)
     raise ConfigError(f"{text!r}: unknown unit {unit!r} ({known}; or a plain number, in "
                       "the session's units)", field=f"--set {key}")
 
@@ -1006,9 +1015,11 @@ def refuse_replacing(out: str | Path, session: Session, scene: Scene) -> str | N
     if kept is not None:
         # (A user's trial: an interrupted take's frames, kept there, were written over by
         # the next run to the same output without a word.)
-        raise ConfigError(f"{kept} holds the frames a run that stopped early kept "
-                          f"({_size(kept)}); move it away to keep them (it replays as it "
-                          "is), or pass --force to write over it", file=str(out))
+        held = {True: "the frames a run that stopped early kept",
+                False: "something that is not a recording",
+                None: "what a run left there"}[holds_recording(kept)]
+        raise ConfigError(f"{kept} holds {held} ({_size(kept)}); move it away to keep it, "
+                          "or pass --force to write over it", file=str(out))
     if not path.exists() or in_place(path):
         return None
     try:
@@ -2261,9 +2272,9 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     elif recording.end_lost:
         summary.warnings.append(
             "the file ends after its last frame, short of its end (its summary, footer or "
-            "closing bytes: cut short there?): every frame is whole and was replayed, but "
-            f"other MCAP tools may refuse it; vade-replay {recording.path} -o WHOLE.mcap "
-            "writes it again whole")
+            "closing bytes missing or unreadable: cut short there?): every frame is whole "
+            "and was replayed, but other MCAP tools may refuse it; vade-replay "
+            f"{recording.path} -o WHOLE.mcap writes it again whole")
     summary.match = summary.first_divergence is None
     summary.largest_departure = departure.result() if departure is not None \
         else None if unreadable else {}
