@@ -493,3 +493,17 @@ def test_the_physics_block_alone_is_judged_as_in_the_whole_session(physics):
     assert whole.value.field.startswith("physics")
     assert (alone.value.field, alone.value.message) == (whole.value.field, whole.value.message)
     validate_physics({}, file="s.json")  # nothing given: valid
+
+
+@pytest.mark.parametrize("distance, warned", [(0.001, False), (1e-4, False), (1.2e-5, True)])
+def test_a_recognition_tolerance_no_hand_can_meet_is_warned_of(distance, warned):
+    """(An engineer's trial: ``--set ...tolerance.distance=0.012`` in a mm session, meant as
+    12 mm, was 0.012 mm: nothing recognised, "the recording is unchanged".) Under a tenth of
+    a millimetre, once in metres, it is warned of naming the constraint and the unit."""
+    doc = json.loads((RECORDINGS / "shaft_placed.json").read_text())
+    doc["parts"][0]["assembly"]["constraints"][0]["tolerance"] = {"distance": distance}
+    found = [w for w in make_session(doc).warnings() if "tolerance.distance is" in w]
+    assert len(found) == int(warned), found
+    if warned:
+        assert found[0].startswith("parts[0].assembly.constraints[0].tolerance.distance is "
+                                   "0.012 mm: it is in the session's units (m)")

@@ -154,6 +154,7 @@ _IDLE_FACTOR = 10.0
 # Physics lengths past these (in metres) are most likely written in another unit: a hand
 # reaches for a part a few centimetres off, and contact is a fraction of a millimetre.
 _LENGTHS_AT_MOST_M = {"grab_radius": 0.5, "contact_tolerance": 0.01}
+_RECOGNISED_AT_LEAST_M = 1e-4
 
 
 def _unlikely_lengths(doc: dict, units: str) -> list[str]:
@@ -172,6 +173,20 @@ def _unlikely_lengths(doc: dict, units: str) -> list[str]:
             out.append(f"{field} is {float(value) * f:.4g} m: it is in the session's units "
                        f"({units}); meant as a smaller unit? (a --set value may carry its "
                        "own: 15mm)")
+    # A constraint's recognition tolerance is how near a hand must let the part go: under a
+    # tenth of a millimetre none does (an engineer's trial: a --set of 0.012 in a mm
+    # session, meant as 12 mm, recognised nothing, "the recording is unchanged").
+    for i, part in enumerate(doc.get("parts") or []):
+        constraints = ((part.get("assembly") or {}).get("constraints") or []) \
+            if isinstance(part, dict) else []
+        for k, constraint in enumerate(constraints):
+            value = ((constraint or {}).get("tolerance") or {}).get("distance")
+            if isinstance(value, (int, float)) and not isinstance(value, bool) \
+                    and 0.0 < float(value) * f < _RECOGNISED_AT_LEAST_M:
+                out.append(f"parts[{i}].assembly.constraints[{k}].tolerance.distance is "
+                           f"{float(value) * f * 1e3:.3g} mm: it is in the session's units "
+                           f"({units}), and no hand lets a part go that near its constraint; "
+                           "meant as a larger unit? (a --set value may carry its own: 12mm)")
     return out
 
 
