@@ -161,8 +161,8 @@ _INDEX_HEAD = struct.Struct("<HI")  # a message index: channel id, byte length o
 
 
 class DataAfterEnd(McapError):
-    """A record of the data section (a chunk, a message, its index, an attachment, metadata)
-    after the data's end record: that "end" is damage (a chunk's opcode changed to it), and
+    """A record of the data section (a chunk, a message, an attachment, metadata, another
+    end) after the data's end record: that "end" is damage (a chunk's opcode changed to it), and
     what follows it is not the summary (a review: damage in a later chunk was then replayed
     as a summary damaged after every frame, a third of the frames said to be all)."""
 
