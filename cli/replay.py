@@ -544,6 +544,42 @@ def _warn(path: str, summary) -> None:
         print(f"warning: {path}: {what_if}{warning}", file=sys.stderr)
 
 
+# What a what-if's keys act on, by the states a part must be in for them to (a user's trial:
+# friction what-ifs of a session whose parts never lay on the base said only "unchanged").
+_ACTS_ON_BASE = ("friction_", "slide_", "turn_", "onbase_", "gravity_scale_slide",
+                 "gravity_scale_rotation", "block_", "coaxial_fit", "contact_sweep",
+                 "passing_contact", "snap_velocity")
+_ACTS_IN_FLIGHT = ("gravity_scale_free", "free_rotation", "landing", "flight_grace")
+
+
+def _why_unchanged(overrides: dict[str, str], summary) -> str:
+    """Where a what-if changed nothing because no part was ever where its keys act (on the
+    base part, in flight, on a tool), the words that say so; else nothing."""
+    parts = ((getattr(summary, "analysis", None) or {}).get("parts") or {}).values()
+    seconds: dict[str, float] = {}
+    for part in parts:
+        for mode, s in (part.get("time_in_state_s") or {}).items():
+            seconds[mode] = seconds.get(mode, 0.0) + s
+    tools = sum(part.get("tool_grabs", 0) for part in parts)
+    reasons = []
+    for key in overrides:
+        name = key[len("physics."):] if key.startswith("physics.") else None
+        on_base = (name is not None and name.startswith(_ACTS_ON_BASE)) \
+            or (key.startswith("parts.") and ".constraints." in key)
+        if on_base and not (seconds.get("ONBASESLIDE") or seconds.get("ONBASESTATIC")):
+            reason = "no part was on the base part, where it acts"
+        elif name is not None and name.startswith(_ACTS_IN_FLIGHT) \
+                and not seconds.get("INSPACE"):
+            reason = "no part flew, where it acts"
+        elif key.startswith("tools.") and not tools:
+            reason = "no tool took a part"
+        else:
+            return ""  # one key that could have acted: no reason to give
+        if reason not in reasons:
+            reasons.append(reason)
+    return f" ({'; '.join(reasons)})" if reasons else ""
+
+
 def _verdict(summary, overrides: dict[str, str], *, short: bool = False,
              path: str = "FILE") -> str:
     """The one-line result; a what-if says so, since departing is what it is for."""
@@ -570,7 +606,8 @@ def _verdict(summary, overrides: dict[str, str], *, short: bool = False,
     if overrides:
         changes = ", ".join(f"{k}={v}" for k, v in sorted(overrides.items()))
         text = f"what-if ({changes}): " + (
-            "the recording is unchanged, " + text if summary.match
+            f"the recording is unchanged{_why_unchanged(overrides, summary)}, " + text
+            if summary.match
             else "departs from the recording: " + summary.first_divergence["text"])
         event_change = getattr(summary, "first_event_change", None)
         if not summary.match and not short:

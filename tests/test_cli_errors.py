@@ -1278,3 +1278,21 @@ def test_a_run_in_which_no_hand_took_a_part_says_so(tmp_path):
     assert missed.returncode == 0
     assert ("no part was grabbed: a hand closed 1 time with nothing in reach (a part's box "
             "within physics.grab_radius of the hand; --events lists each)") in missed.stdout
+
+
+@pytest.mark.parametrize("recording, override, why", [
+    ("throw_and_catch", "physics.friction_static=0.9",
+     " (no part was on the base part, where it acts)"),
+    ("shaft_placed", "physics.gravity_scale_free=0.5", " (no part flew, where it acts)"),
+    ("shaft_placed", "physics.friction_static=0.9", ""),  # on the base: no reason to give
+])
+def test_a_what_if_that_changes_nothing_says_why_where_no_part_was_where_it_acts(
+        recording, override, why):
+    """(Users' trials: friction what-ifs of sessions whose parts never lay on the base said
+    only "the recording is unchanged".) Where no part was ever where a key acts, it says
+    so; where one was (a part on a vertical shaft has no load for friction), no reason is
+    made up."""
+    result = run_cli("vade-replay", str(RECORDINGS / f"{recording}.mcap"), "--set", override)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.startswith(f"what-if ({override}): the recording is unchanged{why}, "
+                                    "match:"), result.stdout
