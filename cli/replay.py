@@ -564,8 +564,9 @@ def _why_unchanged(overrides: dict[str, str], summary) -> str:
     reasons = []
     for key in overrides:
         name = key[len("physics."):] if key.startswith("physics.") else None
+        # (A constraint's tolerances act as a part is let go near it, not on the base.)
         on_base = (name is not None and name.startswith(_ACTS_ON_BASE)) \
-            or (key.startswith("parts.") and ".constraints." in key)
+            or (key.startswith("parts.") and ".constraints." in key and ".friction." in key)
         if on_base and not (seconds.get("ONBASESLIDE") or seconds.get("ONBASESTATIC")):
             reason = "no part was on the base part, where it acts"
         elif name is not None and name.startswith(_ACTS_IN_FLIGHT) \

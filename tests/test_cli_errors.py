@@ -1296,3 +1296,19 @@ def test_a_what_if_that_changes_nothing_says_why_where_no_part_was_where_it_acts
     assert result.returncode == 0, result.stderr
     assert result.stdout.startswith(f"what-if ({override}): the recording is unchanged{why}, "
                                     "match:"), result.stdout
+
+
+def test_a_constraint_s_tolerance_is_not_said_to_act_on_the_base():
+    """A constraint's tolerances act as a part is let go near it (a review of the reasons):
+    no reason is given for them; its friction acts on the base."""
+    from types import SimpleNamespace
+
+    from cli.replay import _why_unchanged
+    flying = SimpleNamespace(analysis={"parts": {"peg": {
+        "time_in_state_s": {"INHAND": 1.0, "INSPACE": 0.5, "STATIC": 1.0}, "tool_grabs": 0}}})
+    key = "parts.peg.constraints.pin.tolerance.distance"
+    assert _why_unchanged({key: "0.01"}, flying) == ""
+    assert _why_unchanged({"parts.peg.constraints.pin.friction.static": "0.9"}, flying) == \
+        " (no part was on the base part, where it acts)"
+    assert _why_unchanged({"tools.hoist.max_mass_kg": "1"}, flying) == " (no tool took a part)"
+    assert _why_unchanged({"physics.gravity_scale_free": "1"}, flying) == ""  # it flew
