@@ -541,7 +541,8 @@ def test_a_chunk_damaged_into_a_data_end_is_damage_not_the_file_s_end(tmp_path, 
     """(A review: a chunk's opcode changed to the data's end record's made the frames after
     it vanish, a third of the recording replayed as a match without a word; with damage in
     a later chunk too, that damage was taken for the summary's, "every frame is whole".)
-    Data after an end record is damage: refused, exit 2, naming it."""
+    Data after an end record is damage, held to the summary's count of frames: refused,
+    exit 2, naming it."""
     import struct
     from conftest import run_cli
     golden = (RECORDINGS / "shaft_placed.mcap").read_bytes()
@@ -558,5 +559,6 @@ def test_a_chunk_damaged_into_a_data_end_is_damage_not_the_file_s_end(tmp_path, 
     path.write_bytes(bytes(data))
     result = run_cli("vade-replay", str(path))
     assert result.returncode == 2 and "Traceback" not in result.stderr
-    assert "after its data's end record" in result.stderr, result.stderr
+    assert ("a data-end record comes before the data's end (its summary counts 181 frames)"
+            in result.stderr), result.stderr
     assert result.stderr.startswith(f"error: {path}: damaged after ")

@@ -160,21 +160,6 @@ _RECORD_SIZE_LIMIT = 4 * 2**30  # StreamReader's default: a larger record is dam
 _INDEX_HEAD = struct.Struct("<HI")  # a message index: channel id, byte length of entries
 
 
-class DataAfterEnd(McapError):
-    """A record of the data section (a chunk, a message, an attachment, metadata, another
-    end) after the data's end record: that "end" is damage (a chunk's opcode changed to it), and
-    what follows it is not the summary (a review: damage in a later chunk was then replayed
-    as a summary damaged after every frame, a third of the frames said to be all)."""
-
-
-# What only the data section holds (the summary repeats schemas and channels, and indexes).
-# Not a message index: it follows a chunk, which is what shows (a damaged footer's opcode
-# read as an index is summary damage, and the records after a false end are a chunk's
-# indexes, then a chunk or the true end).
-_DATA_ONLY = frozenset({Opcode.CHUNK, Opcode.MESSAGE, Opcode.ATTACHMENT, Opcode.METADATA,
-                        Opcode.HEADER, Opcode.DATA_END})
-
-
 def _records(stream) -> Iterator[Header | Attachment | Chunk | Channel | Message | Metadata
                                    | DataEnd | Footer]:
     """The header, attachments, chunks, channels, unchunked messages, metadata, data end and
@@ -189,16 +174,11 @@ def _records(stream) -> Iterator[Header | Attachment | Chunk | Channel | Message
     ``EndOfFile``; damage is what the library's reading of a record raises."""
     data = ReadDataStream(stream)
     read_magic(data)
-    ended = False  # the data's end record read
     while True:
         opcode = data.read1()
         length = data.read8()
         if length > _RECORD_SIZE_LIMIT:
             raise RecordLengthLimitExceeded(opcode, length, _RECORD_SIZE_LIMIT)
-        if ended and opcode in _DATA_ONLY:
-            raise DataAfterEnd(f"a record of the recording's data (opcode {opcode:#04x}) after "
-                               "its data's end record")
-        ended = ended or opcode == Opcode.DATA_END
         if opcode == Opcode.MESSAGE_INDEX:
             # As MessageIndex.read reads it, its entries taken as one block: the same bytes
             # consumed (past the record's end too, where a damaged head says so).
@@ -230,10 +210,19 @@ def _records(stream) -> Iterator[Header | Attachment | Chunk | Channel | Message
             return
 
 
-def _messages(stream) -> Iterator[Channel | tuple[int, bytes] | DataEnd | Footer]:
+def _messages(stream, after_end: list[bool] | None = None
+              ) -> Iterator[Channel | tuple[int, bytes] | DataEnd | Footer]:
     """Channels, messages as ``(channel id, data)``, and the records that end the file:
-    the records of a recording that replay reads, in order, chunk by chunk."""
+    the records of a recording that replay reads, in order, chunk by chunk. ``after_end``
+    (one flag) is set where data (a chunk, a message, metadata, another end) comes after
+    the data's end record: that end was damage (``Recording.frames`` then holds the frames
+    read to the summary's count)."""
+    ended = False
     for record in _records(stream):
+        if ended and after_end is not None \
+                and isinstance(record, (Chunk, Message, Metadata, DataEnd)):
+            after_end[0] = True
+        ended = ended or isinstance(record, DataEnd)
         if isinstance(record, Chunk):
             yield from _chunk_records(record)
         elif isinstance(record, Message):  # a file written without chunks
@@ -699,13 +688,15 @@ class Recording:
 
         complete = False
         count = 0
+        after_end = [False]  # data after the data's end record (``_messages``)
         try:
             with open(self.path, "rb") as stream:
                 size = os.fstat(stream.fileno()).st_size
                 try:
                     # The grouping of messages into frames compiled (``codec``): ~0.6 us a
                     # frame less than this loop over every message.
-                    for frame in codec.recorded_frames(_messages(stream), topics, other, pending):
+                    for frame in codec.recorded_frames(_messages(stream, after_end), topics,
+                                                       other, pending):
                         yield frame
                         count += 1
                     complete = ends[0]
@@ -716,8 +707,7 @@ class Recording:
                                          frame=exc.frame) from None
                 except _READ_ERRORS as exc:
                     at = stream.tell()
-                    if ends[0] and at < size \
-                            and not isinstance(exc, (EndOfFile, EOFError, DataAfterEnd)):
+                    if ends[0] and at < size and not isinstance(exc, (EndOfFile, EOFError)):
                         # Past its data's end record: every frame is whole, only its
                         # summary or footer is damaged (a user's trial: one byte changed
                         # there refused the whole file, as "damaged after 180 complete
@@ -750,6 +740,18 @@ class Recording:
             self.truncated = True
             return
         self.end_lost = not (footer and complete)  # (complete: read to its closing magic)
+        if after_end[0] or self.end_damaged is not None:
+            # An end record before the data's end (a chunk's opcode damaged into one), or
+            # damage after it: held to the summary's count of frames where it can be read
+            # (a review: a chunk read as the end replayed a third of the frames as a match,
+            # and with damage further on took that for the summary's, "every frame whole").
+            read = count + len(pending)
+            counted = self.frame_count
+            if (counted is not None and counted > read) or (counted is None and after_end[0]):
+                raise RecordingError(
+                    f"damaged after {count} complete frames: a data-end record comes before "
+                    "the data's end" + (f" (its summary counts {counted} frames)"
+                                        if counted is not None else ""), file=str(self.path))
         if pending:
             yield pending[0]
         if self.stopped is not None:
