@@ -215,3 +215,18 @@ def test_the_install_compiles_with_the_jobs_asked_for():
     for bad in ("0", "-2", "two", "1.5"):
         jobs, warning = native.build_jobs({native.JOBS_ENV: bad})
         assert jobs == cores and native.JOBS_ENV in warning and repr(bad) in warning
+
+
+def test_a_stale_build_says_why_it_runs_the_sources(monkeypatch):
+    """(A developer's trial: an edited module ran the sources, and the summary's build said
+    "pure Python" and no more.) The modules found stale are named; a pure run asked for
+    says so; neither, nothing more."""
+    monkeypatch.setattr(native, "compiled", lambda: ())
+    monkeypatch.setattr(native, "_STALE", ["vade_replay/step.py"])
+    monkeypatch.delenv(native.PURE_ENV, raising=False)
+    assert native.describe() == "pure Python (vade_replay/step.py changed since compiled)"
+    monkeypatch.setenv(native.PURE_ENV, "1")
+    assert native.describe() == f"pure Python ({native.PURE_ENV}=1)"
+    monkeypatch.delenv(native.PURE_ENV)
+    monkeypatch.setattr(native, "_STALE", [])
+    assert native.describe() == "pure Python"

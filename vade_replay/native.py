@@ -121,12 +121,20 @@ def c_extensions() -> tuple[str, ...]:
     return tuple(out)
 
 
+# The compiled modules found stale on importing the package (``install_switch``).
+_STALE: list[str] = []
+
+
 def describe() -> str:
     """One line for summaries and benchmark tables: ``compiled 12/12 (mypyc), C 1/1`` or
     ``pure Python``."""
     names = compiled()
     if not names:
-        return "pure Python" + (f" ({PURE_ENV}=1)" if pure_requested() else "")
+        # Why, where it is not a choice (a developer's trial: an edited module ran the
+        # sources, and --json said "pure Python" and no more).
+        why = f" ({PURE_ENV}=1)" if pure_requested() else \
+            f" ({', '.join(_STALE)} changed since compiled)" if _STALE else ""
+        return "pure Python" + why
     return f"compiled {len(names)}/{len(MODULES)} (mypyc), C {len(c_extensions())}/" \
         f"{len(C_EXTENSIONS)}"
 
@@ -195,6 +203,7 @@ def install_switch(package_dir: str) -> None:
     changed = stale(os.path.dirname(package_dir))
     if changed:
         _C_OFF = True
+        _STALE[:] = changed
         import warnings
         warnings.warn(f"vade_replay: {', '.join(changed)} changed since it was compiled; "
                       "running the Python sources (slower, same results). Install the "
