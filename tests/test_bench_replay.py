@@ -102,3 +102,12 @@ def test_the_synthetic_session_exercises_every_kind_of_motion():
     assert modes["cylinder"] >= {"STATIC", "INHAND", "INSPACE"}
     assert modes["box"] == {"STATIC"}
     assert replay_bench.machine()
+
+
+def test_a_target_s_figure_never_shows_its_limit_for_a_figure_that_is_not_it():
+    """(A developer's trial: "1.5 <= 1.5 no".) More decimals where two would round a miss
+    or a pass onto the limit itself."""
+    from vade_replay.bench.replay import _shown
+    assert _shown(1.5031, 1.5) == 1.503 and _shown(1.4979, 1.5) == 1.498
+    assert _shown(1.81, 2.0) == 1.81 and _shown(1.5, 1.5) == 1.5
+    assert _shown(1.0162, 1.2, 3) == 1.016 and _shown(1.19996, 1.2, 3) == 1.19996

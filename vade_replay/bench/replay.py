@@ -183,6 +183,16 @@ def _static_parts(short: bool, work: Path, repeats: int) -> list[dict]:
     return rows
 
 
+def _shown(value: float, limit: float, places: int = 2) -> float:
+    """A target's figure to ``places`` decimals, or more where so few would show the limit
+    itself for a figure that is not it (a developer's trial: "1.5 <= 1.5 no")."""
+    shown = round(value, places)
+    while shown == limit and value != limit and places < 6:
+        places += 1
+        shown = round(value, places)
+    return shown
+
+
 TABLES = {"end_to_end": "Record, replay with checking, and a plain read-and-decode: as a "
                         "replay reads (read_decode_s) and by the mcap library and json "
                         "(library_read_decode_s) (seconds; best of repeats)",
@@ -237,27 +247,27 @@ def run(short: bool, out_dir: Path, log=None) -> tuple[list[dict], list[dict]]:
     targets = [
         {"target": "replay with checking / plain read-and-decode: the three-part session "
                    f"({synthetic['session']})",
-         "measured": round(synthetic["replay_over_read"], 2), "limit": "<= 2",
+         "measured": _shown(synthetic["replay_over_read"], 2.0), "limit": "<= 2",
          "met": synthetic["replay_over_read"] <= 2.0},
         {"target": f"the same: the goldens (the worst, {worst_golden['session']})",
-         "measured": round(worst_golden["replay_over_read"], 2), "limit": "<= 2",
+         "measured": _shown(worst_golden["replay_over_read"], 2.0), "limit": "<= 2",
          "met": worst_golden["replay_over_read"] <= 2.0},
         {"target": "the same, against the mcap library's reader and json.loads (the worst "
                    "session; for comparison: the floor of earlier figures)",
-         "measured": round(worst_library, 2), "limit": "<= 2", "met": worst_library <= 2.0},
+         "measured": _shown(worst_library, 2.0), "limit": "<= 2", "met": worst_library <= 2.0},
         {"target": f"real-time factor, 60 Hz three-part session ({synthetic['session']})",
          "measured": round(synthetic["x_real_time"], 1), "limit": ">= 300",
          "met": synthetic["x_real_time"] >= 300.0},
         {"target": f"peak memory, {memory[1]['session']} / {memory[0]['session']}",
-         "measured": round(memory[1]["peak_rss_mb"] / memory[0]["peak_rss_mb"], 3),
+         "measured": _shown(memory[1]["peak_rss_mb"] / memory[0]["peak_rss_mb"], 1.2, 3),
          "limit": "<= 1.2", "met": memory[1]["peak_rss_mb"] <= 1.2 * memory[0]["peak_rss_mb"]},
         {"target": "200 resting parts / moving part alone: simulation",
-         "measured": round(crowd["simulate_s"] / alone["simulate_s"], 2), "limit": "<= 1.5",
+         "measured": _shown(crowd["simulate_s"] / alone["simulate_s"], 1.5), "limit": "<= 1.5",
          "met": crowd["simulate_s"] <= 1.5 * alone["simulate_s"]},
         {"target": "200 resting parts / moving part alone: replay, after setup",
-         "measured": round(per_frame_ratio, 2), "limit": "<= 1.5", "met": per_frame_ratio <= 1.5},
+         "measured": _shown(per_frame_ratio, 1.5), "limit": "<= 1.5", "met": per_frame_ratio <= 1.5},
         {"target": "200 resting parts / moving part alone: replay, setup included",
-         "measured": round(crowd["replay_s"] / alone["replay_s"], 2), "limit": "<= 1.5",
+         "measured": _shown(crowd["replay_s"] / alone["replay_s"], 1.5), "limit": "<= 1.5",
          "met": crowd["replay_s"] <= 1.5 * alone["replay_s"]},
     ]
     return rows, targets
