@@ -1312,3 +1312,28 @@ def test_a_constraint_s_tolerance_is_not_said_to_act_on_the_base():
         " (no part was on the base part, where it acts)"
     assert _why_unchanged({"tools.hoist.max_mass_kg": "1"}, flying) == " (no tool took a part)"
     assert _why_unchanged({"physics.gravity_scale_free": "1"}, flying) == ""  # it flew
+
+
+def test_a_hand_passing_through_the_table_is_warned_of(tmp_path):
+    """(An engineer's trial: a keyframe typed 85 for 805 mm dragged the held part through
+    the table and under it, without a word; a held part is stopped by nothing.) A device
+    over an obstacle and then under it, within its footprint, is named with the frame;
+    going round its edge is not passing through; the golden's own run says nothing."""
+    doc = _doc()
+    ok = run_cli("vade-record", str(_write(tmp_path, doc)), "-o", str(tmp_path / "a.mcap"))
+    assert ok.returncode == 0 and "passes through" not in ok.stderr
+    carried = doc["tracker"]["devices"]["right_hand"][3]
+    assert carried["t"] == 1.2  # the peg held, carried up
+    carried["position"] = [0.05, 0.05, 0.11]  # typed 0.11 for 1.1: under the table
+    typo = run_cli("vade-record", str(_write(tmp_path, doc)), "-o", str(tmp_path / "b.mcap"))
+    assert typo.returncode == 0
+    (line,) = [x for x in typo.stderr.splitlines() if "passes through" in x]
+    assert line.startswith("warning: ") and "right_hand passes through table by frame " in line and "(1 more such)" in line
+    assert line.endswith("a part it holds goes through with it (a held part is stopped by "
+                         "nothing); a position mistyped?")
+    # Under the table beside it, reached round its edge, and back up beside it.
+    carried["position"] = [0.9, 0.05, 0.11]
+    doc["tracker"]["devices"]["right_hand"].insert(3, {"t": 0.95, "position": [0.9, 0.0, 0.9]})
+    doc["tracker"]["devices"]["right_hand"][6]["position"] = [0.9, -0.2, 1.1]
+    around = run_cli("vade-record", str(_write(tmp_path, doc)), "-o", str(tmp_path / "c.mcap"))
+    assert "passes through" not in around.stderr, around.stderr

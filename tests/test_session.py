@@ -381,9 +381,11 @@ def test_a_csv_log_in_another_length_unit_or_jumping_is_warned_of_when_recorded(
                             "farther than any room") for w in far)
     jump = CSV.replace("0.400,right_hand,0,0,1100", "0.310,right_hand,0,0,100")
     # (The peg, let go by a hand jumping at 90 m/s, is then said to fall past the table.)
-    (warning,) = [w for w in _record_csv(tmp_path, jump) if w.startswith("tracker.csv")]
+    # (And, 100 mm up, under the table: it passed through it.)
+    through, warning = [w for w in _record_csv(tmp_path, jump) if w.startswith("tracker.csv")]
     assert warning.startswith("tracker.csv: right_hand jumps 0.9 m between frames 4 and 5 "
                               "(t = 0.310 s; 90 m/s)")
+    assert through.startswith("tracker.csv: right_hand passes through table by frame 5")
 
 
 def test_a_short_csv_row_and_a_wrong_header_say_what_they_hold():

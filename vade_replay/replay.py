@@ -945,7 +945,7 @@ class TrackerWatch:
     # A room is no larger than this (m); no hand moves this fast (m/s) by this far (m).
     ROOM_M, HAND_SPEED_M_S, JUMP_M = 20.0, 25.0, 0.05
 
-    def __init__(self, session: Session) -> None:
+    def __init__(self, session: Session, obstacles=()) -> None:
         tracker = session.doc["tracker"]
         self.csv = "csv" in tracker
         self.units = tracker.get("csv_units", session.doc.get("units", "m")) if self.csv \
@@ -954,6 +954,14 @@ class TrackerWatch:
         self.reach: dict[str, tuple[float, int]] = {}
         self.last: dict[str, tuple[int, object, int]] = {}
         self.jumps: dict[str, list] = {}
+        # ``obstacles``: (name, lo, hi) world boxes, z up, of what nothing passes through
+        # (the table, a fixed base). A device over one and then under it, within its
+        # footprint, passed through it (an engineer's trial: a keyframe typed 85 for 805
+        # dragged the held part 650 mm below the table without a word; a held part is not
+        # stopped by anything). Per (device, obstacle): the side it was last seen on.
+        self.obstacles = list(obstacles)
+        self.side: dict[tuple[str, int], int] = {}
+        self.through: dict[str, list] = {}
 
     def see(self, frame: TrackerFrame) -> None:
         for name, sample in frame.devices:
@@ -961,6 +969,18 @@ class TrackerWatch:
             r = math.sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2])
             if r > self.reach.get(name, (-1.0, 0))[0]:
                 self.reach[name] = (r, frame.frame)
+            for k, (obstacle, lo, hi) in enumerate(self.obstacles):
+                if not (lo[0] <= p[0] <= hi[0] and lo[1] <= p[1] <= hi[1]):
+                    self.side.pop((name, k), None)  # beside it: going round is no passing
+                    continue
+                side = 1 if p[2] > hi[2] else -1 if p[2] < lo[2] else 0
+                if side == 0:
+                    continue  # within it: the side it came from stands
+                before = self.side.get((name, k))
+                self.side[(name, k)] = side
+                if before is not None and before != side:
+                    self.through.setdefault(name, []).append((obstacle, frame.frame,
+                                                              frame.time_ns))
             last = self.last.get(name)
             if last is not None and last[1] is sample:
                 continue  # carried over from an earlier row of a log: not a new sample
@@ -985,6 +1005,13 @@ class TrackerWatch:
                 and 0.0 < max(r for r, _ in self.reach.values()) < 0.003:
             out.append(f"{self.field}: every position of the log is within 3 mm of the origin: "
                        f"written in metres and read as {self.units} (tracker.csv_units)?")
+        for name, passes in sorted(self.through.items()):
+            obstacle, at, t = passes[0]
+            more = f" ({len(passes) - 1} more such)" if len(passes) > 1 else ""
+            out.append(f"{self.field}: {name} passes through {obstacle} by frame {at} (t = "
+                       f"{(t - first_time_ns) * 1e-9:.3f} s){more}: a part it holds goes "
+                       "through with it (a held part is stopped by nothing); a position "
+                       "mistyped?")
         for name, jumps in sorted(self.jumps.items()):
             f0, f1, t, d, dt = jumps[0]
             more = f" ({len(jumps) - 1} more such)" if len(jumps) > 1 else ""
@@ -993,6 +1020,18 @@ class TrackerWatch:
                        f"(t = {(t - first_time_ns) * 1e-9:.3f} s{rate}){more}: faster than a "
                        "hand moves; a position in another unit, or the tracker losing track?")
         return out
+
+
+def _obstacles(scene: Scene) -> list[tuple[str, list[float], list[float]]]:
+    """What no hand passes through, as ``TrackerWatch`` looks at it: the environment and a
+    fixed base, as world boxes, where gravity is down z (the boxes' z is then up)."""
+    g = scene.physics.gravity
+    if not (g[2] < 0.0 and abs(g[0]) + abs(g[1]) <= 1e-9 * abs(g[2])):
+        return []
+    bodies = list(scene.environment)
+    if scene.base is not None and scene.base_fixed:
+        bodies.append(scene.base)
+    return [(body.name, *_world_box(body, body.initial_pose)) for body in bodies]
 
 
 def _size(path: Path) -> str:
@@ -1111,7 +1150,7 @@ def record(session: Session, out: str | Path, *,
     first_time = None
     open_misses: dict[str, int] = {}  # part -> its miss still in flight (``landed``)
     frame = None
-    watch = TrackerWatch(session)
+    watch = TrackerWatch(session, _obstacles(scene))
     writer = RecordingWriter(partial, session, scene)
     writer.warnings = summary.warnings
     # Held off from here to the file's close: to a frame's end while frames are written,
