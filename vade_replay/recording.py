@@ -335,7 +335,8 @@ def left_partial(out: str | Path) -> Path | None:
     target = out.resolve()
     partial = target.with_name(target.name + ".partial")
     try:
-        if not stat.S_ISREG(os.stat(partial).st_mode) or os.stat(partial).st_size == 0:
+        found = os.stat(partial)
+        if not stat.S_ISREG(found.st_mode) or found.st_size == 0:
             return None
         try:
             fd = os.open(partial, os.O_RDONLY)

@@ -791,7 +791,7 @@ _LENGTH_UNITS = {**UNIT_TO_M, "cm": 0.01, "um": 1e-6, "µm": 1e-6, "nm": 1e-9}
 _MASS_UNITS = {"kg": 1.0, "g": 1e-3}
 # Every unit a --set or --tolerance value may carry (``cli.replay`` tells one split off
 # its number by a space from a recording's name).
-VALUE_UNITS = frozenset([*_LENGTH_UNITS, *_MASS_UNITS, "rad", "mrad", "urad", "µrad", "deg"])
+VALUE_UNITS = frozenset([*_LENGTH_UNITS, *_MASS_UNITS, *_ANGLE_UNITS])
 
 
 def _is_length(key: str) -> bool:
@@ -1028,10 +1028,15 @@ def _obstacles(scene: Scene) -> list[tuple[str, list[float], list[float]]]:
     g = scene.physics.gravity
     if not (g[2] < 0.0 and abs(g[0]) + abs(g[1]) <= 1e-9 * abs(g[2])):
         return []
+    return [(body.name, *_world_box(body, body.initial_pose)) for body in _fixed_bodies(scene)]
+
+
+def _fixed_bodies(scene: Scene) -> list:
+    """What does not move: the environment, then a fixed base."""
     bodies = list(scene.environment)
     if scene.base is not None and scene.base_fixed:
         bodies.append(scene.base)
-    return [(body.name, *_world_box(body, body.initial_pose)) for body in bodies]
+    return bodies
 
 
 def _size(path: Path) -> str:
@@ -1763,7 +1768,6 @@ def scene_warnings(scene: Scene, collision: CollisionWorld,
                        f"{depth * 1e3:.2g} mm into the base (on {mate.name}): the base stops "
                        "the part that far short of it, so it is placed only if that gap is "
                        "within final_tolerance")
-        tol = scene.physics.contact_tolerance
         if mate.kind == "axis" and passes and min(passes) < 2.0 * tol:
             # A polygon's clearance to another turns with it, and a part keeps the angle
             # about the axis it is let go at: a few angles (a 32-gon repeats every 11.25
@@ -1790,9 +1794,7 @@ def scene_warnings(scene: Scene, collision: CollisionWorld,
                        f"({tol * 1e3:.2g} mm): it is blocked there; set contact_tolerance "
                        f"under {clear * 1e3:.2g} mm (in the session's units){or_radial}")
     # What a resting part can lie on: the environment, a fixed base, another part.
-    fixed = [_world_box(b, b.initial_pose) for b in scene.environment]
-    if scene.base is not None and scene.base_fixed:
-        fixed.append(_world_box(scene.base, scene.base.initial_pose))
+    fixed = [_world_box(b, b.initial_pose) for b in _fixed_bodies(scene)]
     boxes = {b.name: _world_box(b, b.initial_pose) for b in scene.parts}
     for body in scene.parts:
         if body.initial_mode is not Mode.STATIC or len(fixed) + len(boxes) < 2:
