@@ -665,8 +665,24 @@ def test_a_final_pose_away_from_the_base_and_a_final_tolerance_under_contact_are
     assert far.endswith("mm from the base part: a final pose is in the base's frame, not "
                         "the world's; is it?")
     assert 600 < float(far.split("puts sleeve ")[1].split(" mm")[0]) < 800
+    # 5 mm up the shaft: on it, not away from the base, but floating there (an engineer's
+    # trial: nothing told a seat from a clearance), with where the base would stop it
     assembly["final_pose"]["position"] = [seated[0], seated[1], seated[2] + 0.005]
-    assert warnings(doc) == []  # 5 mm up the shaft: on it, not away from the base
+    (floating,) = warnings(doc)
+    assert floating == ("parts[0].assembly.final_pose: leaves sleeve 5 mm clear of every face "
+                        "of the base but bore_on_shaft's, over final_tolerance.distance (1 mm): "
+                        "a part slid along bore_on_shaft is placed there as it passes, floating; "
+                        "the base would stop it 5 mm against its base direction: if it should "
+                        "rest on a shoulder or a bore's end, move the pose there")
+    assembly["final_pose"]["position"] = [seated[0], seated[1], seated[2] + 0.0005]
+    assert warnings(doc) == []  # half a millimetre: within final_tolerance.distance
+    bare = json.loads(json.dumps(doc))  # a bare shaft, a block off to its side: no stop
+    bare["base"]["shape"]["children"] = [
+        bare["base"]["shape"]["children"][1],
+        {"type": "box", "size": [0.04, 0.04, 0.04], "pose": {"position": [0.15, 0, 0.07]}}]
+    (open_ended,) = warnings(bare)
+    assert "leaves sleeve 105 mm clear" in open_ended
+    assert "nothing of the base stops it either way along the axis" in open_ended
     assembly["final_pose"]["position"] = seated
     assembly["final_tolerance"]["distance"] = 1e-5
     (tight,) = warnings(doc)

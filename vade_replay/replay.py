@@ -1387,6 +1387,39 @@ def _depth_into_base(collision: CollisionWorld, part: str, k: int, mate: cn.Mate
     return min(short)
 
 
+def _floating_final(collision: CollisionWorld, body, i: int, k: int, mate: cn.Mate, pose,
+                    final_distance: float) -> list[str]:
+    """A final pose on an axis that nothing of the base but the axis's own faces touches (a
+    pin 10 mm up its bore, short of the bore's end): a part slid along the axis is placed
+    as it passes, floating, and nothing else tells a seat from a clearance (an engineer's
+    trial). Warned of where that gap is over ``final_tolerance``'s distance, with how far
+    along the axis the base would stop the part each way."""
+    gap = collision.base_distance(body.name, k, pose, SKIP_COAXIAL)
+    if not final_distance < gap < math.inf:
+        return []
+    axis, stops = mate.base_dirs[0], []
+    limit = collision.base_radius + body.reach_from_origin
+    for sign, way in ((-1.0, "against"), (1.0, "along")):
+        s, d = 0.0, gap
+        for _ in range(_APPROACH_STEPS):
+            s += d
+            if s > limit:
+                break
+            moved = Pose(tuple(p + sign * s * a for p, a in zip(pose.position, axis)),
+                         pose.rotation)
+            d = collision.base_distance(body.name, k, moved, SKIP_COAXIAL)
+            if d <= _APPROACH_TOL_M:
+                stops.append(f"{s * 1e3:.3g} mm {way} its base direction")
+                break
+    where = (f"the base would stop it {' or '.join(stops)}" if stops
+             else "nothing of the base stops it either way along the axis")
+    return [f"parts[{i}].assembly.final_pose: leaves {body.name} {gap * 1e3:.3g} mm clear of "
+            f"every face of the base but {mate.name}'s, over final_tolerance.distance "
+            f"({final_distance * 1e3:.3g} mm): a part slid along {mate.name} is placed there "
+            f"as it passes, floating; {where}: if it should rest on a shoulder or a bore's "
+            "end, move the pose there"]
+
+
 # An approach passing the base this near (m) while still this far from the pose is passing
 # it (a pin its bore's rim), not arriving (``scene_warnings``: a fit tighter than the
 # contact tolerance).
@@ -1779,6 +1812,9 @@ def scene_warnings(scene: Scene, collision: CollisionWorld,
                               sp.quat_mul(q, snapped.rotation))
                 _depth_into_base(collision, body.name, k, mate, turned,
                                  body.reach_from_origin, passes)
+        if mate.kind == "axis" and depth <= _INSIDE_BASE_M:
+            out += _floating_final(collision, body, i, k, mate, snapped,
+                                   assembly.final_distance)
         clear = min(passes, default=math.inf)
         if clear < tol and scene.physics.passing_contact == "block":
             # (An engineer's trial: a pin 0.05 mm clear of its bore's rim was held there,
