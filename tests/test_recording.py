@@ -413,6 +413,75 @@ def test_a_recording_cut_in_its_index_keeps_every_frame(tmp_path):
     assert len(list(recording.frames())) < whole and recording.truncated
 
 
+def _records_at(data: bytes) -> list[tuple[int, int, int]]:
+    """``(opcode, offset, length)`` of every record outside chunks, magic to footer."""
+    import struct
+    at, out = 8, []
+    while at + 9 <= len(data):
+        opcode, length = struct.unpack_from("<BQ", data, at)
+        out.append((opcode, at, length))
+        if opcode == 0x02:  # Footer
+            break
+        at += 9 + length
+    return out
+
+
+def test_damage_that_still_parses_in_a_message_index_metadata_or_the_summary_is_said(
+        tmp_path):
+    """A replay reads neither the message indexes nor the summary, and metadata has no CRC
+    of its own: one bit flipped in any of them parsed and replayed as a clean match, while
+    other MCAP tools seek by the indexes (a gap the fourteenth session left). The data
+    section's CRC (written since) and the summary's are checked: the replay still matches,
+    exit 0, with a warning naming what is damaged and how to write the file again whole.
+    A recording made before the data section's CRC was written has its summary checked."""
+    from conftest import run_cli
+    path = tmp_path / "whole.mcap"
+    record(load(RECORDINGS / "drop_on_table.json"), path)
+    whole = path.read_bytes()
+    assert replay(Recording(path)).warnings == []
+    records = _records_at(whole)
+    first = {}
+    for opcode, at, _ in records:
+        first.setdefault(opcode, at)
+    data_part = ("its data outside the frames and the stored session (a message index or "
+                 "metadata)")
+    summary_part = "its summary (the indexes and statistics other MCAP tools seek by)"
+    for name, at, part in (
+            ("index", first[0x07] + 9 + 2 + 4 + 3, data_part),  # a message's log time
+            ("metadata", first[0x0C] + 9 + 4 + 3, data_part),  # a metadata record's name
+            ("statistics", first[0x0B] + 9 + 3, summary_part),  # the message count
+            ("chunk_index", first[0x08] + 9 + 3, summary_part)):  # a chunk's start time
+        damaged = bytearray(whole)
+        damaged[at] ^= 0x01
+        broken = tmp_path / f"{name}.mcap"
+        broken.write_bytes(bytes(damaged))
+        summary = replay(Recording(broken))
+        assert summary.match and summary.warnings == [
+            f"the file is damaged: the CRC-32 of {part} does not match its bytes; every "
+            "frame and the stored session are whole (their own CRCs match) and were "
+            f"replayed, but other MCAP tools may read it wrong; vade-replay {broken} -o "
+            "WHOLE.mcap writes it again whole"], name
+    result = run_cli("vade-replay", str(tmp_path / "index.mcap"))
+    assert result.returncode == 0 and "the CRC-32 of its data outside" in result.stderr
+    # Written again whole, it is.
+    again = tmp_path / "again.mcap"
+    assert run_cli("vade-replay", str(tmp_path / "index.mcap"), "-o", str(again)).returncode == 0
+    assert replay(Recording(again)).warnings == []
+    # A golden from before the data section's CRC: none taken (0), its summary's checked.
+    golden = (RECORDINGS / "drop_on_table.mcap").read_bytes()
+    (data_end,) = [at for opcode, at, _ in _records_at(golden) if opcode == 0x0F]
+    assert golden[data_end + 9:data_end + 13] == bytes(4)
+    inside = {0x07: 9 + 2 + 4 + 3, 0x0B: 9 + 3}  # an index entry's time, the count
+    for opcode, at, _ in _records_at(golden):
+        if opcode in inside:
+            damaged = bytearray(golden)
+            damaged[at + inside.pop(opcode)] ^= 0x01
+            broken = tmp_path / "golden.mcap"
+            broken.write_bytes(bytes(damaged))
+            warned = replay(Recording(broken)).warnings
+            assert (warned != []) == (opcode == 0x0B), opcode
+
+
 def test_a_recording_damaged_after_its_data_end_keeps_every_frame(tmp_path):
     """Damage past the data's end record (its summary or footer: a user's trial changed one
     byte there) leaves every frame whole: all are replayed, with a warning that names where

@@ -440,8 +440,11 @@ class RecordingWriter:
             self._stream.close()
             raise RecordingError("cannot write a recording to a pipe: an MCAP file is written "
                                  "with offsets into it; give a file", file=str(self.path)) from None
+        # The data section's CRC too (the library leaves it out by default): what the
+        # chunks' and attachments' own CRCs leave, the message indexes and the metadata, is
+        # then checked by a replay (``Recording.crc_mismatches``).
         self._writer = Writer(self._stream, compression=CompressionType.ZSTD,
-                              chunk_size=4 * 1024 * 1024)
+                              chunk_size=4 * 1024 * 1024, enable_data_crcs=True)
         self._writer.start(profile=PROFILE, library=f"vade_replay {package_versions()['vade_replay']}")
         self._channels: dict[str, int] = {}
         for topic, (schema_name, schema_file) in codec.CHANNELS.items():
@@ -558,6 +561,9 @@ class Recording:
         self.end_lost = False
         # And where it is not cut there but damaged: the byte its reading stopped at.
         self.end_damaged: int | None = None
+        # Read whole, the parts whose CRC does not match their bytes though they parse (its
+        # data section outside the chunks and attachments, its summary; ``_crc_mismatches``).
+        self.crc_mismatches: list[str] = []
         # Why the run that wrote it stopped before its end, if it did (``STOPPED_METADATA``).
         self.stopped: str | None = None
         # What vade-record warned of when it made it (``WARNINGS_METADATA``), read with the
@@ -674,6 +680,8 @@ class Recording:
         ends = [False, False]  # a data end or footer read (complete), a footer read
         pending: list[RecordedFrame] = []  # the frame being read (codec.recorded_frames)
 
+        closing: list = []  # the data end and footer records read (``_crc_mismatches``)
+
         def other(record) -> None:  # what is not a message: kept, or a note of the end
             if isinstance(record, Channel):
                 topics[record.id] = record.topic
@@ -684,6 +692,7 @@ class Recording:
                     self.warnings = [record.metadata[k] for k in sorted(
                         record.metadata, key=lambda k: int(k) if k.isdigit() else 1 << 30)]
             else:  # DataEnd, Footer
+                closing.append(record)
                 ends[0] = True
                 ends[1] = ends[1] or isinstance(record, Footer)
 
@@ -741,6 +750,8 @@ class Recording:
             self.truncated = True
             return
         self.end_lost = not (footer and complete)  # (complete: read to its closing magic)
+        if not self.end_lost:
+            self.crc_mismatches = _crc_mismatches(self.path, closing)
         if after_end[0] or self.end_damaged is not None:
             # An end record before the data's end (a chunk's opcode damaged into one), or
             # damage after it: held to the summary's count of frames where it can be read
@@ -757,6 +768,62 @@ class Recording:
             yield pending[0]
         if self.stopped is not None:
             self.truncated = True  # closed properly, but short of its session's end
+
+
+_FOOTER_TAIL = 1 + 8 + 8 + 8 + 4 + 8  # a footer record (opcode, length, three fields), magic
+_DATA_END_HEAD = struct.pack("<BQ", Opcode.DATA_END, 4)
+_CRC_BLOCK = 1 << 20
+
+
+def _crc_mismatches(path: Path, closing: list) -> list[str]:
+    """The parts of a whole recording (read to its footer and closing magic) whose CRC-32,
+    as its data end and footer records give it, does not match their bytes: its data
+    section (from the file's start to the data end record: what the chunks' and
+    attachments' own CRCs leave is its message indexes and metadata) and its summary (the
+    indexes and statistics other MCAP tools seek by, with the footer's first fields). A
+    replay reads neither the message indexes nor the summary, so damage there that still
+    parses went unnoticed (a damaged golden read by another tool). A CRC of 0 is none
+    taken (MCAP; recordings before this version have none of the data section). Read in
+    blocks, so memory stays flat; ~1 ms a megabyte."""
+    data_end = next((r for r in closing if isinstance(r, DataEnd)), None)
+    footer = next((r for r in closing if isinstance(r, Footer)), None)
+    if footer is None:
+        return []
+    out: list[str] = []
+    try:
+        with open(path, "rb") as stream:
+            size = os.fstat(stream.fileno()).st_size
+            footer_at = size - _FOOTER_TAIL
+            # The data end record comes just before the summary (just before the footer where
+            # there is no summary): where its head is not there, it is not checked.
+            end_at = (footer.summary_start or footer_at) - len(_DATA_END_HEAD) - 4
+
+            def crc(start: int, stop: int, value: int = 0) -> int:
+                stream.seek(start)
+                while start < stop:
+                    block = stream.read(min(_CRC_BLOCK, stop - start))
+                    if not block:
+                        break
+                    value = zlib.crc32(block, value)
+                    start += len(block)
+                return value
+
+            if data_end is not None and data_end.data_section_crc and 0 <= end_at:
+                stream.seek(end_at)
+                if stream.read(len(_DATA_END_HEAD)) == _DATA_END_HEAD \
+                        and crc(0, end_at) != data_end.data_section_crc:
+                    out.append("its data outside the frames and the stored session (a message "
+                               "index or metadata)")
+            if footer.summary_crc:
+                fields = struct.pack("<BQQQ", Opcode.FOOTER, 8 + 8 + 4, footer.summary_start,
+                                     footer.summary_offset_start)
+                start = min(footer.summary_start or footer_at, footer_at)
+                if zlib.crc32(fields, crc(start, footer_at)) != footer.summary_crc:
+                    out.append("its summary (the indexes and statistics other MCAP tools "
+                               "seek by)")
+    except OSError:
+        return []
+    return out
 
 
 def read_and_decode(path: str | Path) -> int:
