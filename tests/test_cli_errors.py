@@ -692,6 +692,27 @@ def test_two_recordings_to_one_output_at_once_do_not_mix(tmp_path):
                    process=True).returncode == 0
 
 
+def test_a_lock_held_for_a_moment_does_not_refuse_a_writer(tmp_path):
+    """``left_partial`` takes a shared lock on a ``.partial`` for a moment to see whether a
+    run is writing it; a writer starting in that moment was told "another run is writing".
+    It waits for a lock let go within a fifth of a second (a run writing holds it for the
+    whole run, refused above)."""
+    import fcntl
+    import os
+    import threading
+    from vade_replay.recording import RecordingWriter
+    from vade_replay.session import load
+    session = load(RECORDINGS / "drop_on_table.json")
+    partial = tmp_path / "run.mcap.partial"
+    partial.write_bytes(b"left by an interrupted run")
+    fd = os.open(partial, os.O_RDONLY)
+    fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    threading.Timer(0.05, os.close, (fd,)).start()  # let go 50 ms on, as a glance does
+    writer = RecordingWriter(partial, session, session.build_scene())
+    writer.close()
+    assert Recording(partial).session.name == "drop_on_table"
+
+
 @pytest.mark.parametrize("command, option", [("vade-record", "-o"), ("vade-replay", "-o"),
                                              ("vade-replay", "--rerun")])
 def test_a_recording_or_review_to_standard_output_is_refused_not_a_file_named_dash(

@@ -16,6 +16,7 @@ import os
 import platform
 import stat
 import struct
+import time
 import zlib
 from dataclasses import asdict, dataclass
 from functools import cached_property
@@ -397,7 +398,7 @@ def _open_alone(path: Path):
         try:
             if fcntl is not None and stat.S_ISREG(os.fstat(fd).st_mode):
                 try:
-                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                    _lock_soon(fd)
                 except BlockingIOError:
                     raise RecordingError(
                         "another run is writing this file now (two runs with the same "
@@ -415,6 +416,27 @@ def _open_alone(path: Path):
             os.close(fd)
             raise
     raise RecordingError("cannot lock this file: it keeps being replaced", file=str(path))
+
+
+# How long a writer waits for a lock held for a moment: ``left_partial``'s shared lock,
+# taken and let go to see whether a run is writing a ``.partial``, made a run starting in
+# that moment report "another run is writing". A run writing holds it for the whole run.
+_LOCK_WAIT_S = 0.2
+_LOCK_POLL_S = 0.005
+
+
+def _lock_soon(fd: int) -> None:
+    """``flock(fd, LOCK_EX)``, waiting up to ``_LOCK_WAIT_S`` for a lock held a moment;
+    ``BlockingIOError`` where it is still held then."""
+    deadline = time.monotonic() + _LOCK_WAIT_S
+    while True:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return
+        except BlockingIOError:
+            if time.monotonic() >= deadline:
+                raise
+            time.sleep(_LOCK_POLL_S)
 
 
 def _names(path: Path, fd: int) -> bool:
