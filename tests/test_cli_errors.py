@@ -172,26 +172,33 @@ def test_what_if_replay_runs_and_leaves_the_original_alone(tmp_path):
     assert out.exists()
 
 
-def test_a_run_that_fails_part_way_keeps_what_it_recorded(tmp_path):
+def test_a_bad_row_of_a_tracker_log_is_an_error_before_anything_is_recorded(tmp_path):
+    """A researcher's trial: a bad row was found only when the run reached it, and the
+    ``.partial`` of the frames before it refused the corrected run. The log is read
+    through first: the row is named, nothing is written (an older file at the output is
+    kept), and the corrected log records at once. (A run that fails part way for another
+    reason keeps its frames: ``test_batched_replay``.)"""
     from test_session import CSV, _csv_doc
 
     doc = _csv_doc()
     (tmp_path / "log.csv").write_text(CSV + "2.5,right_hand,0,0,oops,1,0,0,0,0\n")
     out = tmp_path / "run.mcap"
     out.write_bytes(b"an older recording")
+    session = str(_write(tmp_path, doc))
     # (Not a recording of this session: without --force it is refused before the run.)
-    refused = run_cli("vade-record", str(_write(tmp_path, doc)), "-o", str(out))
+    refused = run_cli("vade-record", session, "-o", str(out))
     _assert_clean_error(refused, str(out), "not a readable recording", "--force")
-    result = run_cli("vade-record", str(_write(tmp_path, doc)), "-o", str(out), "--force")
+    result = run_cli("vade-record", session, "-o", str(out), "--force")
     # The log named where it is, beside the session (a user's trial: bare "log.csv").
     _assert_clean_error(result, f"{tmp_path / 'log.csv'}: line 10")
     assert out.read_bytes() == b"an older recording"  # not clobbered
-    partial = tmp_path / "run.mcap.partial"
-    assert str(partial) in result.stderr
-    replayed = run_cli("vade-replay", str(partial), "--json")
+    assert not (tmp_path / "run.mcap.partial").exists() and "kept" not in result.stderr
+    (tmp_path / "log.csv").write_text(CSV + "2.5,right_hand,0,0,0.8,1,0,0,0,0\n")
+    fixed = run_cli("vade-record", session, "-o", str(out), "--force")
+    assert fixed.returncode == 0, fixed.stderr
+    replayed = run_cli("vade-replay", str(out), "--json")
     assert replayed.returncode == 0, replayed.stderr
-    # Every frame before the bad row, including the 2.0 s frame still open when it came.
-    assert json.loads(replayed.stdout)["frames"] == 7
+    assert json.loads(replayed.stdout)["frames"] == 8
 
 
 def test_output_paths_that_cannot_be_written(tmp_path):

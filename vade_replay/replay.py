@@ -1143,6 +1143,7 @@ def record(session: Session, out: str | Path, *,
         note = refuse_replacing(out, session, scene)
         if note:
             print(f"note: {note}", file=sys.stderr)
+    session.check_tracker()  # a bad row of a log: an error before anything is written
     partial, target = partial_output(out)
     collision = CollisionWorld(scene)
     summary = RunSummary(session.name, parts=[p.name for p in scene.parts],
