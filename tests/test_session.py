@@ -388,6 +388,29 @@ def test_a_csv_log_in_another_length_unit_or_jumping_is_warned_of_when_recorded(
     assert through.startswith("tracker.csv: right_hand passes through table by frame 5")
 
 
+def test_a_hand_farther_from_the_head_than_an_arm_reaches_is_warned_of(tmp_path):
+    """A researcher's trial: a keyframe typed 11.0 for 1.1 m carried the held peg 10 m up,
+    where it was still flying when the session ended (no drop counted), without a word.
+    Neither "farther than any room" (20 m) nor a jump (20 m/s) caught it; a hand 9.4 m
+    from its head is named, once, at its farthest. The goldens' hands stay within 1.5 m of
+    a head left standing, and say nothing."""
+    from vade_replay.replay import record
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+    assert record(make_session(doc, {}),
+                  tmp_path / "ok.mcap").warnings == []
+    hand = doc["tracker"]["devices"]["right_hand"]
+    hand[3]["position"] = [0.05, 0.05, 11.0]  # the keyframe at 1.2 s, 1.1 m meant
+    warned = record(make_session(doc, {}),
+                    tmp_path / "typo.mcap").warnings
+    (arm,) = [w for w in warned if "from the head" in w]
+    assert arm == ("tracker.devices: right_hand is 9.42 m from the head at frame 72, farther "
+                   "than an arm reaches: a position mistyped (a part it holds goes there "
+                   "with it)?")
+    # 9.42 m: the keyframe's (0.05, 0.05, 11.0) from the head's place, at 1.2 s (frame 72)
+    head = doc["tracker"]["devices"]["head"][0]["position"]
+    assert abs(math.dist(head, hand[3]["position"]) - 9.42) < 0.005
+
+
 def test_a_short_csv_row_and_a_wrong_header_say_what_they_hold():
     """A row cut short names its line and how many values it has against the header's
     columns (it said ``list index out of range``); a header lacking columns shows what it
@@ -409,7 +432,7 @@ def test_a_log_stamping_its_devices_apart_is_not_taken_for_a_jumping_hand(tmp_pa
     its own samples (1/60 s apart), not across the 1 ms (a review: "66.5 m/s")."""
     from vade_replay.replay import record
     lines = ["time,device,x,y,z,q0,q1,q2,q3,grip"]
-    for n in range(120):
+    for n in range(30):  # (half a second: 2 m, within an arm of the head, ARM_M)
         t = n / 60
         lines += [f"{t:.6f},head,-600,0,1600,1,0,0,0,",
                   f"{t + 0.001:.6f},right_hand,{4000 * t:.3f},0,900,1,0,0,0,0"]

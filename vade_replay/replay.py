@@ -944,6 +944,10 @@ class TrackerWatch:
 
     # A room is no larger than this (m); no hand moves this fast (m/s) by this far (m).
     ROOM_M, HAND_SPEED_M_S, JUMP_M = 20.0, 25.0, 0.05
+    # No hand is this far from its head (m): an arm reaches ~0.8 m, scripted sessions
+    # with a head left standing put a hand up to ~1.5 m from it (the goldens).
+    ARM_M = 3.0
+    HANDS = ("left_hand", "right_hand")
 
     def __init__(self, session: Session, obstacles=()) -> None:
         tracker = session.doc["tracker"]
@@ -962,13 +966,25 @@ class TrackerWatch:
         self.obstacles = list(obstacles)
         self.side: dict[tuple[str, int], int] = {}
         self.through: dict[str, list] = {}
+        # Per hand: the farthest it was from the head, where farther than an arm reaches
+        # (a researcher's trial: 11.0 typed for 1.1 m carried a part 10 m up, where it was
+        # still flying at the end, its drop uncounted, without a word).
+        self.off_head: dict[str, tuple[float, int]] = {}
 
     def see(self, frame: TrackerFrame) -> None:
+        head = None
+        for name, sample in frame.devices:
+            if name == "head":
+                head = sample.position
         for name, sample in frame.devices:
             p = sample.position
             r = math.sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2])
             if r > self.reach.get(name, (-1.0, 0))[0]:
                 self.reach[name] = (r, frame.frame)
+            if head is not None and name in self.HANDS:
+                d = math.dist(p, head)
+                if d > self.ARM_M and d > self.off_head.get(name, (0.0, 0))[0]:
+                    self.off_head[name] = (d, frame.frame)
             for k, (obstacle, lo, hi) in enumerate(self.obstacles):
                 if not (lo[0] <= p[0] <= hi[0] and lo[1] <= p[1] <= hi[1]):
                     self.side.pop((name, k), None)  # beside it: going round is no passing
@@ -1005,6 +1021,10 @@ class TrackerWatch:
                 and 0.0 < max(r for r, _ in self.reach.values()) < 0.003:
             out.append(f"{self.field}: every position of the log is within 3 mm of the origin: "
                        f"written in metres and read as {self.units} (tracker.csv_units)?")
+        for name, (d, at) in sorted(self.off_head.items()):
+            out.append(f"{self.field}: {name} is {d:.3g} m from the head at frame {at}, "
+                       "farther than an arm reaches: a position mistyped (a part it holds "
+                       "goes there with it)?")
         for name, passes in sorted(self.through.items()):
             obstacle, at, t = passes[0]
             more = f" ({len(passes) - 1} more such)" if len(passes) > 1 else ""
