@@ -112,6 +112,49 @@ def test_turning_on_a_tilted_shaft_happens_about_the_shaft_while_it_slides():
     assert turned > 0.3
 
 
+def test_holding_torque_holds_the_swing_at_its_turning_point_not_the_frame_end():
+    """A physics audit: the swing was stopped at the end of the frame in which it turned
+    back, having swung back by up to ``alpha dt^2 / 2`` (0.012 rad at 60 Hz for the issue's
+    gear). The turning point is located within the frame (``onbase.turning_point``): the
+    held angle is DOP853's (rtol 1e-13) turning point to 1e-7 rad, the first whose gravity
+    torque is within the holding torque, in the frame that holds it."""
+    damping = 2e-4
+
+    def rhs(t, y):
+        return [y[1], (MASS * np.cross(_r(y[0]), GRAV).dot(U) - damping * y[1]) / J]
+
+    def turned(t, y):
+        return y[1]
+    sol = solve_ivp(rhs, (0.0, 6.0), [0.0, 0.0], method="DOP853", rtol=1e-13, atol=1e-13,
+                    events=turned, dense_output=True)
+    stops = [(t, y[0]) for t, y in zip(sol.t_events[0], sol.y_events[0]) if t > 1e-6]
+
+    def torque(theta: float) -> float:
+        return abs(MASS * np.cross(_r(theta), GRAV).dot(U))
+    # The first turning point after the first that falls early in its frame (turned back
+    # by a few milliseconds at the frame's end: where the old stop was far off), held by a
+    # torque between its gravity torque and the one before's (the swing decays).
+    k = next(i for i in range(1, len(stops))
+             if math.ceil(stops[i][0] * 60 - 1e-9) / 60 - stops[i][0] > 0.006)
+    assert torque(stops[k - 1][1]) > torque(stops[k][1])
+    hold = 0.5 * (torque(stops[k - 1][1]) + torque(stops[k][1]))
+    t_stop, theta_stop = stops[k]
+    scene = gear_scene({"friction_holding_torque": hold}, damping=damping)
+    state = on_base(scene, sp.IDENTITY, RELEASE, mode=Mode.ONBASESLIDE)
+    held = None
+    for n, state, events in run(scene, state, 6 * 60):
+        if held is None and state.parts[0].mode is Mode.ONBASESTATIC:
+            held = (state.time_ns * 1e-9, state.parts[0].motion.angle)
+            assert any(getattr(e, "cause", None) == "held_by_friction" for e in events)
+    assert held is not None
+    t_held, theta_held = held
+    assert t_held - 1 / 60 < t_stop <= t_held + 1e-9  # in the frame that holds it
+    assert abs(theta_held - theta_stop) < 1e-7, theta_held - theta_stop
+    # Where the old stop was: the free swing at the frame's end, well off the turning point.
+    assert abs(sol.sol(t_held)[0] - theta_stop) > 1e-3
+    assert state.parts[0].motion.angle == theta_held  # and held there
+
+
 def test_holding_torque_stops_a_swing_at_a_turning_point_and_holds_it():
     """Static friction about the shaft: the gear swings as before until the first turning
     point where gravity's torque is within the holding torque, stops there, and stays."""

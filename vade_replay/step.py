@@ -1290,13 +1290,15 @@ def _slide_and_turn(f: _Frame, index: int) -> None:
                                      physics.turn_integrator)
                 if mate.holding_torque > 0.0 and m.angle_rate * w1 <= 0.0 and w1 != 0.0 \
                         and m.angle_rate != 0.0:
-                    # It came to a stop in this frame: static friction holds it there if
-                    # gravity's torque is within the limit (a turning point of the swing).
-                    at_stop = replace(m, angle=a1)
-                    torque = abs(_alpha_at_rest(body, mate, at_stop, _to_base(
-                        f, physics.gravity_rotation))) * mate.inertia_about_axis
+                    # It came to a stop in this frame: static friction holds it there,
+                    # at the turning point of its swing (located in the frame), if
+                    # gravity's torque is within the limit.
+                    at, a_stop = onbase.turning_point(force, m.angle, m.angle_rate, dt,
+                                                      physics.turn_step_s,
+                                                      physics.turn_integrator)
+                    torque = abs(force.alpha(a_stop, at)) * mate.inertia_about_axis
                     if torque <= mate.holding_torque:
-                        w1 = 0.0
+                        a1, w1 = a_stop, 0.0
     if not (_finite(x1) and _finite(v1) and _finite((a1, w1))):
         f.change_mode(index, replace(part, mode=ONBASESTATIC, linear_velocity=_zero3(),
                                      angular_velocity=_zero3(),

@@ -403,13 +403,16 @@ def _turn_stages(integrator: str, h: float, damping: float) -> list[tuple[float,
 
 
 def turn(force: TurnForce, theta: float, omega: float, dt: float, steps: int,
-         integrator: str) -> tuple[float, float]:
-    """Advance (theta, omega) over a frame of ``dt`` seconds in ``steps`` sub-steps."""
+         integrator: str, frame_dt: float = 0.0) -> tuple[float, float]:
+    """Advance (theta, omega) over a frame of ``dt`` seconds in ``steps`` sub-steps; with
+    ``frame_dt``, over the first ``dt`` seconds of a frame of ``frame_dt`` (the force's
+    gravity path is the frame's: ``turning_point``)."""
     if integrator == "paper":
-        alpha = force.alpha(theta, 1.0) - force.damping * omega
+        alpha = force.alpha(theta, 1.0 if frame_dt == 0.0 else dt / frame_dt) \
+            - force.damping * omega
         return theta + omega * dt + 0.5 * alpha * dt * dt, omega + alpha * dt
     h = dt / steps
-    inv_dt = 1.0 / dt
+    inv_dt = 1.0 / (dt if frame_dt == 0.0 else frame_dt)
     if integrator == "rk4":
         c = force.damping
         t = 0.0
@@ -463,6 +466,31 @@ _CF4_EARLY: Final = 0.5 - math.sqrt(3.0) / 6.0
 _CF4_LATE: Final = 0.5 + math.sqrt(3.0) / 6.0
 _CF4_MAIN: Final = 0.5 + math.sqrt(3.0) / 3.0
 _CF4_BACK: Final = 0.5 - math.sqrt(3.0) / 3.0
+
+
+def turning_point(force: TurnForce, theta: float, omega: float, dt: float,
+                  max_step_s: float, integrator: str) -> tuple[float, float]:
+    """``(s, theta)``: the fraction of a frame of ``dt`` at which a swing that turned back
+    within it (``omega`` at its start, the other sign or zero at its end) comes to rest,
+    and its angle there, by bisection on the fraction, each trial integrated from the
+    frame's start as the frame is (sub-steps of at most ``max_step_s``). A holding torque
+    stops the part there (``step._slide_and_turn``): stopped at the frame's end, it had
+    swung back by up to ``alpha dt^2 / 2`` (a physics audit: 0.012 rad at 60 Hz)."""
+    lo, hi = 0.0, 1.0
+    theta_hi = theta
+    for _ in range(48):  # to ~4e-15 of the frame
+        mid = 0.5 * (lo + hi)
+        if mid <= lo or mid >= hi:
+            break
+        span = mid * dt
+        a, w = turn(force, theta, omega, span, substeps(span, max_step_s), integrator, dt)
+        if w * omega > 0.0:
+            lo = mid
+        else:
+            hi, theta_hi = mid, a
+    if hi == 1.0:  # (every trial still turning: the stop is at the frame's end)
+        theta_hi = turn(force, theta, omega, dt, substeps(dt, max_step_s), integrator)[0]
+    return hi, theta_hi
 
 
 def substeps(dt: float, max_step_s: float) -> int:
