@@ -184,6 +184,46 @@ def test_a_part_let_go_against_a_wall_falls_along_it_onto_the_plate(grace):
     assert 0.96 <= records[-1].parts[0].position[2] - 0.02 <= 0.96 + 1e-4
 
 
+@pytest.mark.parametrize("roll, pitch", [(20, 5), (35, 8), (5, 2)])
+def test_a_block_let_go_in_the_corner_of_a_plate_and_a_leaning_wall_rests_there(roll, pitch):
+    """A physics audit: a fixed plate with a wall along one edge, tilted so that the wall
+    leans over the plate, and a block let go at rest touching both (its bottom on the
+    plate, its side on the wall). Which face is nearest is round-off's choice; where it
+    was the wall's, which cannot hold the block up, the block flew, passed the plate's top
+    as a surface it touched as it left, and came to rest on the plate's bottom face, 19.9
+    mm inside the 20 mm plate (5 of 15 tilts). The plate's face, touched too, holds it:
+    it rests there, bottom on the plate's top, for the rest of the run."""
+    q = sp.quat_from_euler_deg(float(roll), float(pitch), 0.0)
+    base_at = (0.0, 0.0, 1.1)
+    corner = (-0.3, 0.105, 0.03)  # the block's centre: bottom on z 0.01, side on y 0.13
+    at = sp.add(base_at, sp.quat_rotate(q, corner))
+    block = {"name": "block", "shape": {"type": "box", "size": [0.05, 0.05, 0.04]},
+             "density": 2700, "pose": {"position": [0.5, -0.3, 0.76]}}
+    doc = session_doc(
+        parts=[block], duration_s=1.8,
+        right_hand=[{"t": 0, "position": [0.5, -0.3, 0.76], "grip": False},
+                    {"t": 0.2, "grip": True},
+                    {"t": 0.8, "position": list(at), "euler_deg": [roll, pitch, 0]},
+                    {"t": 1.2, "grip": False}, {"t": 1.4, "position": [0.3, -0.5, 1.3]}],
+        base={"name": "plate_with_wall", "fixed": True,
+              "pose": {"position": list(base_at), "euler_deg": [roll, pitch, 0]},
+              "shape": {"type": "compound", "children": [
+                  {"type": "box", "size": [1.0, 0.3, 0.02]},
+                  {"type": "box", "size": [1.0, 0.02, 0.06],
+                   "pose": {"position": [0, 0.14, 0.04]}}]}})
+    doc["environment"] = [table(size=(2.0, 2.0, 0.04))]
+    records = run_records(doc)
+    assert _transitions(records)[-1] == ("INHAND", "ONBASESTATIC", "released_touching_base")
+    released = next(r.frame for r in records for e in r.events
+                    if e.cause == "released_touching_base")
+    base = sp.Pose(base_at, q)
+    for r in records[released:]:
+        part = r.parts[0]
+        assert part.mode == "ONBASESTATIC"
+        local = base.inverse().compose(sp.Pose(part.position, part.rotation_xyzw)).position
+        assert abs(local[2] - 0.03) < 1e-9 and abs(local[1] - 0.105) < 1e-9, local
+
+
 def test_a_part_let_go_against_a_wall_of_two_stacked_boxes_passes_the_seam():
     """A review: the wall made of two boxes stacked (a seam at z 0.99, the lower box's top
     inside the wall, its edge flush with the wall's face), the block let go 0.5 mm above
