@@ -93,18 +93,24 @@ def test_the_hand_taking_the_base_and_gaps_in_its_samples():
     """A review of the first world velocities (a one-frame difference of the base's poses):
     a left hand that starts late in the log moved the base from its session pose into the
     hand in one frame, recorded at 57 m/s. That pose is no sample: the base is at rest
-    when the hand takes it. A device missing from a log's frame keeps its last sample, so
-    the base as simulated holds through a gap (0) and then steps the gap's turn in one
-    frame (three frames' turn after two missing), as its poses show."""
+    when the hand takes it. A device missing from a log's frames is where its own samples
+    before and after put it (``csv_between`` interpolate), so the base turns on through a
+    gap at its rate; with ``csv_between`` hold it keeps its last sample, so the base holds
+    through the gap (0) and then steps the gap's turn in one frame (three frames' turn
+    after two missing), as its poses show."""
     doc = _shaft_placed()
     logged, files = _with_log(doc, drop=range(150, 152), late=0.5)
     records = run_records(logged, files)
     took = next(r for r in records if r.time_ns * 1e-9 >= 0.5 - 1e-9)
     assert took.base.linear_velocity == (0.0, 0.0, 0.0)
     assert all(sp.norm(r.base.linear_velocity) < 0.2 for r in records)
+    # (To the log's times, written in seconds: ns off.)
+    for k in (150, 151, 152, 153):
+        assert records[k].base.angular_velocity == pytest.approx(OMEGA, rel=1e-6)
+    logged["tracker"]["csv_between"] = "hold"
+    records = run_records(logged, files)
     for k in (150, 151):
         assert records[k].base.angular_velocity == (0.0, 0.0, 0.0)
-    # (To the log's times, written in seconds: ns off.)
     assert records[152].base.angular_velocity == pytest.approx(sp.scale(OMEGA, 3.0), rel=1e-6)
     assert records[153].base.angular_velocity == pytest.approx(OMEGA, rel=1e-6)
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import itertools
 import json
 import math
 import operator
@@ -1163,7 +1164,10 @@ def record(session: Session, out: str | Path, *,
         note = refuse_replacing(out, session, scene)
         if note:
             print(f"note: {note}", file=sys.stderr)
-    session.check_tracker()  # a bad row of a log: an error before anything is written
+    # A log is read and checked whole before its first frame (``inputs.from_csv``): a bad
+    # row is an error here, before anything is written.
+    stream = session.tracker_frames()
+    first_input = next(stream, None)
     partial, target = partial_output(out)
     collision = CollisionWorld(scene)
     summary = RunSummary(session.name, parts=[p.name for p in scene.parts],
@@ -1184,8 +1188,8 @@ def record(session: Session, out: str | Path, *,
     # close of an interrupted run lost every frame kept).
     with FrameBoundaryInterrupts() as interrupts:
         try:
-            # (The tracker stream is opened inside: a CSV log may fail as it is read.)
-            inputs = _watched(session.tracker_frames(), watch)
+            inputs = _watched(itertools.chain(() if first_input is None else (first_input,),
+                                              stream), watch)
             advance = Stepper(scene, collision)
             # A batch at a time (``_stepped``): what stops the run part way is raised after
             # the frames before it are written.

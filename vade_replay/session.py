@@ -498,17 +498,6 @@ class Session:
             return f"{head}:files/{name}"
         return str(Path(self.source).parent / name)
 
-    def check_tracker(self) -> None:
-        """Read a tracker log through before a run, so a bad row (a typo, an unknown device,
-        a time going back) is an error before any frame is written: a researcher's trial
-        learned of one only when the run reached it (a long log's last row after the whole
-        run), with a ``.partial`` of the frames before it that then refused the corrected
-        run. ~6 us a row (a ten-minute log at 90 Hz of three devices, ~1 s). Keyframes are
-        checked as the session is read."""
-        if "csv" in self.doc["tracker"]:
-            for _ in self.tracker_frames():
-                pass
-
     def tracker_frames(self) -> Iterator[TrackerFrame]:
         """The tracker stream to record (keyframes resampled, or the CSV log)."""
         tracker = self.doc["tracker"]
@@ -519,7 +508,8 @@ class Session:
                                    units=tracker.get("csv_units", units),
                                    time_unit=tracker.get("csv_time_unit", "s"),
                                    quaternion_order=tracker["csv_quaternion_order"],
-                                   known=inputs.devices(self.doc))
+                                   known=inputs.devices(self.doc),
+                                   between=tracker.get("csv_between", "interpolate"))
         return inputs.from_keyframes(tracker, units, file=self.source,
                                      known=inputs.devices(self.doc))
 
