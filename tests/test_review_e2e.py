@@ -36,6 +36,28 @@ def test_review_of_a_matching_replay(tmp_path):
     assert "/markers/divergence" not in store  # nothing diverged, nothing marked
 
 
+def test_the_energy_plot_is_conserved_in_free_flight_under_its_scaled_gravity(tmp_path):
+    """A researcher's trial: the review's potential energy took full g while a part flies
+    under ``gravity_scale_free`` (0.25), so a throw's plotted total rose 26 % to its apex
+    with nothing acting on it. In flight the total is now constant: 0.5 m v^2 + 0.5 w.I.w
+    - m (0.25 g).x_cm for the golden's thrown cylinder, to round-off."""
+    golden = RECORDINGS / "throw_and_catch.mcap"
+    rrd = tmp_path / "review.rrd"
+    assert run_cli("vade-replay", str(golden), "--rerun", str(rrd)).returncode == 0
+    store = read_rrd(rrd)
+    total = dict(rows(store, "/plots/energy/recorded/cylinder/total", "Scalars:scalars"))
+    flying = [r.frame for r in recorded_records(Recording(golden))
+              for p in r.parts if p.name == "cylinder" and p.mode == "INSPACE"]
+    assert len(flying) > 20
+    # (The first flying frame's snapshot is at the release: its velocity the fit's.)
+    values = [total[f] for f in flying[1:]]
+    assert max(values) - min(values) < 1e-9 * max(abs(v) for v in values), values
+    # Held, the plot still takes full g: the potential changes scale at the release.
+    potential = dict(rows(store, "/plots/energy/recorded/cylinder/potential", "Scalars:scalars"))
+    held = flying[0] - 1
+    assert potential[held] != pytest.approx(potential[flying[0]], rel=0.5)
+
+
 def test_review_marks_the_first_divergence(tmp_path):
     target = 90
     tampered = tmp_path / "t.mcap"

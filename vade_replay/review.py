@@ -28,7 +28,9 @@ def scene_info(scene: Scene) -> SceneInfo:
         base=_mesh(scene.base) if scene.base else None,
         environment=tuple((_mesh(b), b.initial_pose.position, b.initial_pose.rotation)
                           for b in scene.environment),
-        gravity=scene.physics.gravity)
+        gravity=scene.physics.gravity,
+        gravity_by_mode=(("INSPACE", scene.physics.gravity_free),
+                         ("ONBASESLIDE", scene.physics.gravity_slide)))
 
 
 def _recorded(recording: Recording) -> Iterator[FrameRecord]:
