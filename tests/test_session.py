@@ -478,6 +478,45 @@ def test_a_hand_farther_from_the_head_than_an_arm_reaches_is_warned_of(tmp_path)
     assert abs(math.dist(head, hand[3]["position"]) - 9.42) < 0.005
 
 
+def test_a_keyframe_or_pose_with_two_rotations_is_refused_naming_it(tmp_path):
+    """A researcher's trial: ``euler_deg`` added to a keyframe that had ``xyzw`` was
+    ignored, and the held peg never turned. A keyframe with both is refused by
+    ``vade-record`` (exit 2, naming it); a pose with both was refused by the schema in
+    its own words ("should not be valid under {'required': ...}"), now in the user's."""
+    from conftest import run_cli
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+    doc["tracker"]["devices"]["right_hand"][3].update(xyzw=[0, 0, 0, 1], euler_deg=[90, 0, 0])
+    path = tmp_path / "both.json"
+    path.write_text(json.dumps(doc))
+    result = run_cli("vade-record", str(path), "-o", str(tmp_path / "both.mcap"))
+    assert result.returncode == 2 and result.stderr == (
+        f"error: {path}: field tracker.devices.right_hand[3]: both xyzw and euler_deg are "
+        "given: keep one\n")
+    assert not (tmp_path / "both.mcap").exists()
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+    doc["parts"][0]["pose"].update(xyzw=[0, 0, 0, 1], euler_deg=[90, 0, 0])
+    with pytest.raises(SessionError) as info:
+        make_session(doc)
+    assert (info.value.field, info.value.message) == (
+        "parts[0].pose", "xyzw and euler_deg are both given: give one")
+
+
+def test_a_part_named_as_the_base_or_the_table_is_warned_of():
+    """A researcher's trial: a part named as its base had its 60 rows in ``--poses`` mixed
+    with the base's 181 under one name. Warned of (as shared constraint names are: a
+    recording made so still replays); distinct names say nothing."""
+    doc = json.loads((RECORDINGS / "shaft_placed.json").read_text())
+    assert not any(".name:" in w for w in make_session(doc).warnings())
+    doc["parts"][0]["name"] = doc["base"]["name"]
+    (warning,) = [w for w in make_session(doc).warnings() if ".name:" in w]
+    assert warning == ("parts[0].name: 'block_with_shaft' is also the base's name: their "
+                       "rows in --poses and their events share it, so tables mix the two; "
+                       "give each its own")
+    doc["parts"][0]["name"] = "table"
+    (warning,) = [w for w in make_session(doc).warnings() if ".name:" in w]
+    assert warning.startswith("parts[0].name: 'table' is also environment[0]'s name")
+
+
 def test_a_short_csv_row_and_a_wrong_header_say_what_they_hold():
     """A row cut short names its line and how many values it has against the header's
     columns (it said ``list index out of range``); a header lacking columns shows what it

@@ -44,6 +44,11 @@ def _keyframes(device: str, frames: list[dict], factor: float, file: str) -> lis
                                f"t = {last_t:g} s (keyframes are listed in time order)",
                                file=file, field=f"{where}.t")
         last_t = kf["t"]
+        if "xyzw" in kf and "euler_deg" in kf:
+            # (A researcher's trial: euler_deg added to a template's keyframe was ignored,
+            # and the held peg never turned.)
+            raise SessionError("both xyzw and euler_deg are given: keep one", file=file,
+                               field=where)
         if "position" in kf:
             position = tuple(float(v) * factor for v in kf["position"])
             if any(abs(v) > MAX_ABS_POSITION_M for v in position):

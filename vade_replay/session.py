@@ -128,6 +128,11 @@ def _first_error(validator, doc: object, file: str, prefix: tuple) -> None:
                 raise SessionError(f"unknown field {extra[0]!r}{hint}; allowed: "
                                    f"{', '.join(known)}", file=file, field=field)
         message = error.message
+        if error.validator == "not" and isinstance(error.validator_value, dict) \
+                and list(error.validator_value) == ["required"]:
+            # (It read "{...} should not be valid under {'required': ['xyzw', 'euler_deg']}".)
+            message = (f"{' and '.join(error.validator_value['required'])} are both given: "
+                       "give one")
         if error.validator == "required" and isinstance(error.instance, dict):
             # A typo of the required key ("radus" for "radius"): name the key written.
             import difflib
@@ -249,6 +254,30 @@ def _shared_constraint_names(doc: dict) -> list[str]:
             out.append(f"parts[{i}].assembly.constraints: {names.count(name)} constraints of "
                        f"part {part.get('name')!r} are named {name!r}: reports and --set "
                        "name a constraint by its name, so give each its own")
+    return out
+
+
+def _shared_body_names(doc: dict) -> list[str]:
+    """A part named as the base or an environment object, or two of those under one name: a
+    part's rows in ``--poses`` and its events then mix with the other's under one name (a
+    researcher's trial: a part named as its base, 181 base rows and 60 of the part's as
+    one). Warned of, not refused, as shared constraint names are: a recording made so
+    still replays."""
+    bodies = ([("base", (doc.get("base") or {}).get("name"))] if doc.get("base") else [])
+    bodies += [(f"environment[{i}]", item.get("name"))
+               for i, item in enumerate(doc.get("environment") or [])]
+    bodies += [(f"parts[{i}]", item.get("name")) for i, item in enumerate(doc.get("parts") or [])]
+    out, first = [], {}
+    for where, name in bodies:
+        if name is None:
+            continue
+        if name in first and not (first[name].startswith("parts[")
+                                  and where.startswith("parts[")):  # (parts: refused)
+            other = "the base" if first[name] == "base" else first[name]
+            out.append(f"{where}.name: {name!r} is also {other}'s name: their rows in "
+                       "--poses and their events share it, so tables mix the two; give "
+                       "each its own")
+        first.setdefault(name, where)
     return out
 
 
@@ -405,6 +434,7 @@ class Session:
         out += _unlikely_lengths(self.doc, units)
         out += _unknown_shape_keys(self.doc)
         out += _shared_constraint_names(self.doc)
+        out += _shared_body_names(self.doc)
         out += _unlikely_densities(self.doc)
         out += _friction_inverted(self.doc)
         out += _unknown_body_keys(self.doc)
