@@ -699,6 +699,35 @@ def test_two_recordings_to_one_output_at_once_do_not_mix(tmp_path):
                    process=True).returncode == 0
 
 
+@pytest.mark.parametrize("how", ["dropped", "doubled"])
+def test_a_tracker_message_dropped_or_repeated_by_another_tool_is_named(tmp_path, how):
+    """A researcher's trial: a recording passed through another tool that dropped (or
+    repeated) one /tracker message replayed as "DIVERGED" (exit 1, the physics blamed),
+    dumping a /parts message's whole dict. Frames are numbered from 0, one a message: a
+    gap or a repeat is named, with the frame, exit 2."""
+    from mcap.reader import make_reader
+    golden = RECORDINGS / "drop_on_table.mcap"
+    with open(golden, "rb") as f:
+        tracker = [message.data for _, channel, message in make_reader(f).iter_messages()
+                   if channel.topic == "/tracker"]
+
+    def edit(topic, index, data):
+        if topic == "/tracker" and index == 70 and how == "dropped":
+            return None
+        if topic == "/tracker" and index == 71 and how == "doubled":
+            return tracker[70]  # frame 70's message again, in frame 71's place
+        return data
+    edited = tmp_path / f"{how}.mcap"
+    copy_recording(golden, edited, edit)
+    result = run_cli("vade-replay", str(edited))
+    expected = {"dropped": "frame 70: tracker frame 70 is missing (frame 69 is followed by "
+                           "frame 71)",
+                "doubled": "frame 71: tracker frame 70 appears twice"}[how]
+    _assert_clean_error(result, f"{edited}: field /tracker frame: {expected}: the recording "
+                                "was edited, filtered or merged by another tool?")
+    assert "DIVERGED" not in result.stdout + result.stderr
+
+
 def test_a_lock_held_for_a_moment_does_not_refuse_a_writer(tmp_path):
     """``left_partial`` takes a shared lock on a ``.partial`` for a moment to see whether a
     run is writing it; a writer starting in that moment was told "another run is writing".

@@ -231,6 +231,14 @@ def recorded_frames(messages: Iterator[Any], topics: dict[int, str],
                     pending.clear()
                     yield current
                 inputs = decode_tracker(data)
+                expected = 0 if current is None else current.inputs.frame + 1
+                if inputs.frame != expected:
+                    # Frames are written numbered from 0, one a message: a gap or a repeat
+                    # is an edited file's, not a divergence of the physics (a researcher's
+                    # trial: one message dropped by another tool read "DIVERGED" with a
+                    # message's whole dict).
+                    raise RecordingError(_misnumbered(expected, inputs.frame),
+                                         field=f"{TRACKER_TOPIC} frame", frame=expected)
                 if current is not None and inputs.time_ns < current.inputs.time_ns:
                     # (A tracker's frames may repeat a time, a duplicated sample; never go
                     # back: the step and the release-velocity fit take time as it comes.)
@@ -246,6 +254,22 @@ def recorded_frames(messages: Iterator[Any], topics: dict[int, str],
                 current.derived.append((topic, data))
         else:
             other(record)
+
+
+def _misnumbered(expected: int, found: int) -> str:
+    """Why a tracker message's frame number is not the next one, in a user's words."""
+    if found == expected - 1:
+        what = f"tracker frame {found} appears twice"
+    elif expected == 0:
+        what = f"the first tracker frame is frame {found}, not 0: the frames before it are missing"
+    elif found > expected:
+        what = (f"tracker frame {expected} is missing" if found == expected + 1 else
+                f"tracker frames {expected}-{found - 1} are missing") \
+            + f" (frame {expected - 1} is followed by frame {found})"
+    else:
+        what = f"tracker frame {found} comes after frame {expected - 1}"
+    return (what + ": the recording was edited, filtered or merged by another tool? Its "
+            "inputs are not the ones recorded, so it cannot be replayed")
 
 
 def snapshot_dict(s: PartSnapshot) -> dict:

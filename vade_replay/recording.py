@@ -696,6 +696,15 @@ class Recording:
                 return summary.statistics.channel_message_counts.get(channel_id)
         return None
 
+    def _false_end(self, count: int) -> RecordingError:
+        """The error of a data-end record before the data's end (damage), ``count`` frames
+        read whole before it."""
+        counted = self.frame_count
+        return RecordingError(
+            f"damaged after {count} complete frames: a data-end record comes before the "
+            "data's end" + (f" (its summary counts {counted} frames)"
+                            if counted is not None else ""), file=str(self.path))
+
     def frames(self) -> Iterator[RecordedFrame]:
         """Frames in the order written, streaming chunk by chunk."""
         topics: dict[int, str] = {}
@@ -735,6 +744,10 @@ class Recording:
                 except RecordingError as exc:
                     if exc.file is not None:
                         raise
+                    if after_end[0]:
+                        # Past a data-end record that is damage (a chunk's opcode): what
+                        # follows is misread for that, not for itself (a gap in the frames).
+                        raise self._false_end(count) from None
                     raise RecordingError(exc.message, file=str(self.path), field=exc.field,
                                          frame=exc.frame) from None
                 except _READ_ERRORS as exc:
@@ -782,10 +795,7 @@ class Recording:
             read = count + len(pending)
             counted = self.frame_count
             if (counted is not None and counted > read) or (counted is None and after_end[0]):
-                raise RecordingError(
-                    f"damaged after {count} complete frames: a data-end record comes before "
-                    "the data's end" + (f" (its summary counts {counted} frames)"
-                                        if counted is not None else ""), file=str(self.path))
+                raise self._false_end(count)
         if pending:
             yield pending[0]
         if self.stopped is not None:
