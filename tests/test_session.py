@@ -517,6 +517,28 @@ def test_a_part_named_as_the_base_or_the_table_is_warned_of():
     assert warning.startswith("parts[0].name: 'table' is also environment[0]'s name")
 
 
+def test_a_log_grouped_by_device_says_so():
+    """A researcher's trial: a log written a device at a time (every head row, then every
+    hand row) failed at the first hand row with "time goes backwards", after recording the
+    head alone. Refused before any frame, saying what it looks like; a row going back in
+    time within a device's rows says only that."""
+    head = [f"{t / 10:.1f},head,-600,0,1600,1,0,0,0," for t in range(3)]
+    hand = [f"{t / 10:.1f},right_hand,0,0,790,1,0,0,0,0" for t in range(3)]
+    grouped = "\n".join(["time,device,x,y,z,q0,q1,q2,q3,grip", *head, *hand]) + "\n"
+    with pytest.raises(SessionError) as info:
+        list(make_session(_csv_doc(), {"log.csv": grouped.encode()}).tracker_frames())
+    assert info.value.field == "line 5: time"
+    assert info.value.message == (
+        "time goes backwards: right_hand's first row goes back to an earlier time than the "
+        "row before; is the log grouped by device? Rows are in time order, the devices' "
+        "rows interleaved (sort it by time)")
+    back = "\n".join(["time,device,x,y,z,q0,q1,q2,q3,grip", head[0], hand[0], head[2],
+                       head[1]]) + "\n"
+    with pytest.raises(SessionError) as info:
+        list(make_session(_csv_doc(), {"log.csv": back.encode()}).tracker_frames())
+    assert (info.value.field, info.value.message) == ("line 5: time", "time goes backwards")
+
+
 def test_a_short_csv_row_and_a_wrong_header_say_what_they_hold():
     """A row cut short names its line and how many values it has against the header's
     columns (it said ``list index out of range``); a header lacking columns shows what it

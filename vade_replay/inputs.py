@@ -218,7 +218,13 @@ def from_csv(data: bytes, *, file: str, units: str, time_unit: str,
                                         time_unit=time_unit,
                                         quaternion_order=quaternion_order, known=known)
         if times and t_ns < times[-1]:
-            raise SessionError("time goes backwards", file=file,
+            # A log written a device at a time (every head row, then every hand row: a
+            # researcher's trial) restarts its time at a device's first row.
+            grouped = "" if index[device] in devs else (
+                f": {device}'s first row goes back to an earlier time than the row before; "
+                "is the log grouped by device? Rows are in time order, the devices' rows "
+                "interleaved (sort it by time)")
+            raise SessionError("time goes backwards" + grouped, file=file,
                                field=f"line {line_no}: time")
         times.append(t_ns)
         devs.append(index[device])
