@@ -194,6 +194,10 @@ class RunSummary:
     # Each part's mass as the run had it (from its mesh and density, or its
     # mass_properties): a mesh in the wrong unit or a density in g/cm^3 shows here.
     masses_kg: dict[str, float] = field(default_factory=dict)
+    # Each part's centre of mass in its own frame (m): ``--poses`` gives the part frame's
+    # origin and the centre of mass's velocities (a researcher's trial differentiated the
+    # one and compared it with the other), so the point itself is here.
+    centers_of_mass_m: dict[str, list[float]] = field(default_factory=dict)
     # How far the run's parts went from the recording's (``Departure``): part -> the largest
     # distance between the two runs' positions (m) and angle between their orientations
     # (rad), each with its frame. Measured in a what-if, and in a replay from its first
@@ -1174,7 +1178,9 @@ def record(session: Session, out: str | Path, *,
                          warnings=session.warnings() + scene_warnings(scene, collision,
                                                                       session.doc),
                          units=session.doc.get("units", "m"),
-                         masses_kg={p.name: p.mass_kg for p in scene.parts})
+                         masses_kg={p.name: p.mass_kg for p in scene.parts},
+                         centers_of_mass_m={p.name: list(p.center_of_mass)
+                                            for p in scene.parts})
     if on_warnings is not None and summary.warnings:
         on_warnings(list(summary.warnings))
     first_time = None
@@ -2194,6 +2200,8 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     summary = RunSummary(session.name, parts=[p.name for p in scene.parts], overrides=applied,
                          units=session.doc.get("units", "m"),
                          masses_kg={p.name: p.mass_kg for p in scene.parts},
+                         centers_of_mass_m={p.name: list(p.center_of_mass)
+                                            for p in scene.parts},
                          physics_changed=physics_changes(recording, scene.physics, applied),
                          made_elsewhere=made_elsewhere(recording),
                          warnings=_introduced(session, recording.session) if applied else [],
