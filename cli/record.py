@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from vade_replay import session as session_mod
-from vade_replay.errors import ConfigError
+from vade_replay.errors import ConfigError, VadeError
 from vade_replay.recording import ensure_writable
 from vade_replay.replay import miss_line, record
 
@@ -32,6 +32,17 @@ def _parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    try:
+        return _main(args)
+    except VadeError as exc:
+        if args.json:
+            # As vade-replay --json has it for an unusable recording (a researcher's trial:
+            # a bad session printed no JSON at all); the error line and exit 2 as ever.
+            print_json({"session": args.session, "error": exc.describe()})
+        raise
+
+
+def _main(args: argparse.Namespace) -> int:
     not_standard_output(args.output, "-o")
     session = session_mod.load(args.session)
     out = Path(args.output) if args.output else Path(Path(args.session).stem + ".mcap")

@@ -15,8 +15,12 @@ from typing import Iterator, TextIO
 from vade_replay.errors import ConfigError
 from vade_replay.recording import Recording, ensure_writable
 from vade_replay.replay import (ANALYSIS_COLUMNS, VALUE_UNITS, WHAT_IF_TOLERANCE, Tolerance,
-                                analysis_rows, apply_overrides, describe_departure, miss_line,
-                                parse_tolerance, replay)
+                                _number_and_unit, analysis_rows, apply_overrides,
+                                describe_departure, miss_line, parse_tolerance, replay)
+
+# Past these (m, rad) a tolerance is warned of: round-off is ~1e-9, another machine's
+# departures 1e-15-1e-12 (README), and a centimetre or a tenth of a radian is physics.
+LOOSE_TOLERANCE = (0.01, 0.1)
 from vade_replay.tables import FRAME_TABLES, STDOUT, FrameTables, TableError, TableFile
 
 from vade_replay.errors import VadeError
@@ -126,6 +130,14 @@ def _no_split_units(args) -> None:
             raise ConfigError(f"{path!r} is given as a recording, and is a unit: a value's "
                               "unit goes with its number, without a space (--set "
                               f"physics.grab_radius=15mm, --tolerance 1um)", field=option)
+        found = _number_and_unit(path)
+        if args.tolerance and found is not None and found[1].lower() in units \
+                and not os.path.exists(path):
+            # (A researcher's trial: --tolerance 1mm 1deg replayed the study, then stopped
+            # at "1deg: no such file".)
+            raise ConfigError(f"{path!r} is given as a recording, and is a value: "
+                              "--tolerance takes a distance and an angle with a comma "
+                              "between (--tolerance 1mm,1deg)", field="--tolerance")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -134,7 +146,15 @@ def main(argv: list[str] | None = None) -> int:
     args.recordings = _once_each(args.recordings)
     _no_split_units(args)
     overrides = _overrides(args.set)
+    given_tolerance = args.tolerance
     args.tolerance = None if args.tolerance is None else parse_tolerance(args.tolerance)
+    if args.tolerance is not None and (args.tolerance.distance_m > LOOSE_TOLERANCE[0]
+                                       or args.tolerance.angle_rad > LOOSE_TOLERANCE[1]):
+        # (A researcher's trial: --tolerance 5 took 5 m and 5 rad, and any replay matched.)
+        print(f"warning: --tolerance {given_tolerance}: {args.tolerance.distance_m:g} m and "
+              f"{args.tolerance.angle_rad:g} rad, which a replay of other physics may be "
+              "within (round-off is 1e-9; a number without a unit is metres, then "
+              "radians)", file=sys.stderr)
     if args.tolerance is not None and overrides:
         raise ConfigError(WHAT_IF_TOLERANCE, field="--tolerance")
     if args.spawn and not args.rerun:
@@ -494,12 +514,12 @@ def _tally(summaries: list[dict], what_if: bool) -> str:
              + ("unchanged" if what_if else "match")
              + (f" ({within} within the tolerance)" if within else ""),
              f"{len(done) - matched - within} " + ("departed" if what_if else "diverged")]
-    cut = sum(bool(s.get("truncated")) for s in done)
-    if cut:
-        parts.append(f"{cut} cut short")
     parts.append(f"{unusable} could not be replayed" + (" (see the errors above)"
                                                          if unusable else ""))
-    return ", ".join(parts)
+    cut = sum(bool(s.get("truncated")) for s in done)
+    # (Of those replayed, not beside them: a researcher's trial read "2 match, 1 diverged,
+    # 1 cut short" of 3 as a sum.)
+    return ", ".join(parts) + (f"; {cut} of those replayed cut short" if cut else "")
 
 
 def _one_of_many(args, overrides: dict[str, str], path: str, result: tuple[str, object],

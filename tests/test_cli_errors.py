@@ -296,6 +296,15 @@ def test_many_recordings_at_once(tmp_path):
     assert result.stdout.splitlines()[-1] == ("3 recordings: 1 match, 1 diverged, 1 could "
                                               "not be replayed (see the errors above)")
     _assert_clean_error(run_cli("vade-replay", *good, "-o", str(tmp_path / "x.mcap")), "-o")
+    # One cut short (a crash while recording) is counted among those replayed, not beside
+    # them (a researcher's trial read "2 match, 1 diverged, 1 cut short" of 3 as a sum).
+    cut = tmp_path / "cut.mcap"
+    data = (RECORDINGS / "drop_on_table.mcap").read_bytes()
+    cut.write_bytes(data[:len(data) // 2])
+    result = run_cli("vade-replay", good[0], str(cut))
+    assert result.returncode == 0
+    assert result.stdout.splitlines()[-1] == ("2 recordings: 2 match, 0 diverged, 0 could "
+                                              "not be replayed; 1 of those replayed cut short")
 
 
 def test_many_recordings_in_worker_processes_give_the_same_output(tmp_path):
@@ -498,7 +507,7 @@ def test_the_table_marks_a_recording_cut_short(tmp_path):
     rows = list(csv.DictReader(table.open()))
     assert [(r["truncated"], r["match"]) for r in rows] == [("False", "True"), ("True", "True")]
     assert int(rows[1]["frames"]) < int(rows[0]["frames"])
-    assert "1 cut short" in result.stdout.splitlines()[-1]
+    assert "; 1 of those replayed cut short" in result.stdout.splitlines()[-1]
 
 
 def test_a_what_if_warns_of_gravity_in_the_wrong_units():
@@ -1307,6 +1316,48 @@ def test_a_unit_split_off_its_value_is_named_before_anything_is_replayed(args, o
     _assert_clean_error(result, f"error: {option}: '{args[-1]}' is given as a recording, "
                                 "and is a unit", "without a space")
     assert result.stdout == ""  # nothing replayed
+
+
+def test_a_tolerance_s_angle_given_apart_is_named_and_a_loose_one_warned_of():
+    """A researcher's trial: ``--tolerance 1mm 1deg`` replayed the study, then stopped at
+    "1deg: no such file"; ``--tolerance 5`` took 5 m and 5 rad and matched any replay
+    without a word. The one is refused before anything is replayed, the other warned of."""
+    golden = str(RECORDINGS / "plane_block_wall.mcap")
+    result = run_cli("vade-replay", golden, "--tolerance", "1mm", "1deg")
+    _assert_clean_error(result, "error: --tolerance: '1deg' is given as a recording, and is "
+                                "a value", "(--tolerance 1mm,1deg)")
+    assert result.stdout == ""
+    loose = run_cli("vade-replay", golden, "--tolerance", "5")
+    assert loose.returncode == 0 and loose.stderr.startswith(
+        "warning: --tolerance 5: 5 m and 5 rad, which a replay of other physics may be "
+        "within")
+    tight = run_cli("vade-replay", golden, "--tolerance", "1e-9")
+    assert tight.returncode == 0 and "warning" not in tight.stderr
+
+
+def test_vade_record_json_of_a_bad_session_prints_its_error_as_json(tmp_path):
+    """A researcher's trial: ``vade-record --json`` of a bad session printed nothing on
+    stdout (vade-replay --json gives ``{"recording", "error"}``): now
+    ``{"session", "error"}``, with the error line and exit 2 as ever."""
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+    doc["parts"][0]["densty"] = 2700
+    path = _write(tmp_path, doc)
+    result = run_cli("vade-record", str(path), "-o", str(tmp_path / "r.mcap"), "--json")
+    assert result.returncode == 2 and result.stderr.startswith("error: ")
+    printed = json.loads(result.stdout)
+    assert printed["session"] == str(path) and "densty" in printed["error"]
+    assert printed["error"] == result.stderr.removeprefix("error: ").strip()
+
+
+def test_a_tracker_message_that_is_not_json_names_its_frame(tmp_path):
+    """A researcher's trial: frame 70's /tracker message cut by 10 bytes said "message on
+    /tracker is not JSON" without the frame the README promises."""
+    def edit(topic, index, data):
+        return data[:-10] if topic == "/tracker" and index == 70 else data
+    edited = tmp_path / "garbage.mcap"
+    copy_recording(RECORDINGS / "drop_on_table.mcap", edited, edit)
+    _assert_clean_error(run_cli("vade-replay", str(edited)),
+                        f"error: {edited}: frame 70: message on /tracker is not JSON")
 
 
 def test_one_unusable_recording_with_json_prints_its_entry_as_several_do(tmp_path):

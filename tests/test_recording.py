@@ -362,19 +362,34 @@ def test_an_interrupted_recording_says_where_its_frames_are(tmp_path, capsys):
                                        "session's end (interrupted); replayed the 10 frames"
                                        ) in result.stderr
     assert not Recording(RECORDINGS / "drop_on_table.mcap").stopped
-    # The next run to the same output does not write over those frames (a user's trial:
-    # an interrupted take was lost without a word), nor does a replay's -o; --force does.
+    # The next run of another take to the same output does not write over those frames (a
+    # user's trial: an interrupted take was lost without a word), nor does a replay's -o of
+    # another recording; --force does.
     kept_bytes = partial.read_bytes()
-    again = run_cli("vade-record", str(RECORDINGS / "drop_on_table.json"), "-o", str(out))
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+    doc["tracker"]["devices"]["right_hand"][-1]["position"][0] += 0.01  # another take
+    other_take = tmp_path / "take2.json"
+    other_take.write_text(json.dumps(doc))
+    again = run_cli("vade-record", str(other_take), "-o", str(out))
     assert again.returncode == 2 and "Traceback" not in again.stderr
     assert again.stderr.startswith(f"error: {out}: {partial} holds the frames a run that "
                                    "stopped early kept"), again.stderr
     assert "--force" in again.stderr
-    replayed = run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"), "-o", str(out))
+    replayed = run_cli("vade-replay", str(RECORDINGS / "throw_and_catch.mcap"), "-o", str(out))
     assert replayed.returncode == 2 and str(partial) in replayed.stderr
     assert partial.read_bytes() == kept_bytes and not out.exists()
-    forced = run_cli("vade-record", str(RECORDINGS / "drop_on_table.json"), "-o", str(out),
-                     "--force")
+    # The same session again (or a replay of its recording: the same session and physics)
+    # makes those frames again: replaced, with a note (a researcher's trial: an
+    # interrupted replay's -o refused the replay run again until --force).
+    same = run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"), "-o", str(out))
+    assert same.returncode == 0, same.stderr
+    assert (f"note: replacing {partial}, which a run of this session that stopped early "
+            "left: this run makes its frames again") in same.stderr
+    assert out.exists() and not partial.exists()
+    out.unlink()
+    assert interrupted_recording(session, out, 10) == 130
+    capsys.readouterr()
+    forced = run_cli("vade-record", str(other_take), "-o", str(out), "--force")
     assert forced.returncode == 0 and out.exists() and not partial.exists()
     # What is not a recording there is not called one (a review), and is kept all the same.
     partial.write_text("my notes\n")

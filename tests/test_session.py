@@ -380,7 +380,9 @@ def test_physics_lengths_too_long_for_what_they_are_are_warned_of(units, physics
              if "grab_radius is" in w or "contact_tolerance is" in w]
     assert len(found) == len(expected), found
     for warning, start in zip(found, expected):
-        assert warning.startswith(start) and f"session's units ({units})" in warning
+        assert warning.startswith(start) and f"session's units, {units};" in warning
+        # (Not "meant as a smaller unit?": a --set of 60cm is warned of too.)
+        assert "smaller unit" not in warning
 
 
 def test_a_typo_of_a_base_or_environment_key_is_warned_of():
@@ -558,6 +560,25 @@ def test_a_log_grouped_by_device_says_so():
     with pytest.raises(SessionError) as info:
         list(make_session(_csv_doc(), {"log.csv": back.encode()}).tracker_frames())
     assert (info.value.field, info.value.message) == ("line 5: time", "time goes backwards")
+
+
+def test_silent_no_op_sessions_are_warned_of_and_a_bom_is_read():
+    """A researcher's trial: a tool with no tracker stream of its name, and a session with
+    no tracker streams at all, recorded without a word (nothing could move); a session
+    saved with a byte-order mark (Windows editors) was refused as not JSON."""
+    doc = json.loads((RECORDINGS / "hoist_placed.json").read_text())
+    assert make_session(doc).warnings() == []
+    del doc["tracker"]["devices"]["hoist"]
+    assert make_session(doc).warnings() == [
+        "tools[0]: no tracker stream is named 'hoist' (tracker.devices): the tool never "
+        "moves, so it never takes a part"]
+    doc["tracker"]["devices"] = {}
+    assert make_session(doc).warnings() == [
+        "tracker.devices is empty: no hand, head or tool moves, so nothing is grabbed"]
+    from vade_replay import session as session_mod
+    raw = (RECORDINGS / "drop_on_table.json").read_bytes()
+    with_bom = session_mod.parse(b"\xef\xbb\xbf" + raw, {}, source="bom.json")
+    assert with_bom.doc == session_mod.parse(raw, {}, source="plain.json").doc
 
 
 def test_a_short_csv_row_and_a_wrong_header_say_what_they_hold():

@@ -230,8 +230,14 @@ def recorded_frames(messages: Iterator[Any], topics: dict[int, str],
                 if current is not None:
                     pending.clear()
                     yield current
-                inputs = decode_tracker(data)
                 expected = 0 if current is None else current.inputs.frame + 1
+                try:
+                    inputs = decode_tracker(data)
+                except RecordingError as exc:
+                    if exc.frame is None:  # (its own number unread: the one it should be)
+                        exc.frame = expected
+                    raise
+
                 if inputs.frame != expected:
                     # Frames are written numbered from 0, one a message: a gap or a repeat
                     # is an edited file's, not a divergence of the physics (a researcher's

@@ -175,9 +175,14 @@ def _unlikely_lengths(doc: dict, units: str) -> list[str]:
     for field, key, value in given:
         if isinstance(value, (int, float)) and not isinstance(value, bool) \
                 and float(value) * f > _LENGTHS_AT_MOST_M[key]:
-            out.append(f"{field} is {float(value) * f:.4g} m: it is in the session's units "
-                       f"({units}); meant as a smaller unit? (a --set value may carry its "
-                       "own: 15mm)")
+            # (Not "meant as a smaller unit?": a --set value with its own unit, 60cm, is
+            # warned of too; a researcher's trial read that as wrong.)
+            what = "a hand reaches for a part a few centimetres off" \
+                if key == "grab_radius" else "contact is a fraction of a millimetre"
+            out.append(f"{field} is {float(value) * f:.4g} m, over "
+                       f"{_LENGTHS_AT_MOST_M[key]:g} m: {what}; is it as meant? (a plain "
+                       f"number is in the session's units, {units}; a --set value may "
+                       "carry its own: 15mm)")
     # A constraint's recognition tolerance is how near a hand must let the part go: under a
     # tenth of a millimetre none does (an engineer's trial: a --set of 0.012 in a mm
     # session, meant as 12 mm, recognised nothing, "the recording is unchanged").
@@ -439,6 +444,18 @@ class Session:
         out += _friction_inverted(self.doc)
         out += _unknown_body_keys(self.doc)
         tracker = self.doc["tracker"]
+        devices = tracker.get("devices")
+        if devices is not None and not devices:
+            out.append("tracker.devices is empty: no hand, head or tool moves, so nothing is "
+                       "grabbed")
+        elif devices is not None:
+            # (A researcher's trial: a tool with no stream of its name recorded without a
+            # word; it never moves, so it never takes a part.)
+            for i, tool in enumerate(self.doc.get("tools") or []):
+                if tool.get("name") not in devices:
+                    out.append(f"tools[{i}]: no tracker stream is named {tool.get('name')!r} "
+                               "(tracker.devices): the tool never moves, so it never takes "
+                               "a part")
         if "csv" in tracker:
             gap = self._csv_sample_gap_s()
             unit = tracker.get("csv_time_unit", "s")
@@ -550,7 +567,7 @@ def parse(raw: bytes, files: dict[str, bytes], *, source: str,
     the ``validated_digest`` a recording stored; when it matches, schema validation is
     skipped (the bytes are the ones validated then, against the same schema)."""
     try:
-        doc = strict_json(raw.decode("utf-8"))
+        doc = strict_json(raw.decode("utf-8-sig"))  # (a BOM: Windows editors)
     except (UnicodeDecodeError, ValueError) as exc:
         raise SessionError(f"not valid JSON: {exc}", file=source) from None
     trusted = validated is not None and validated == validated_digest(raw)
@@ -577,7 +594,7 @@ def load(path: str | Path) -> Session:
         raise SessionError("this is a recording (MCAP), not a session file: replay it with "
                            "vade-replay", file=str(path))
     try:
-        doc = strict_json(raw.decode("utf-8"))
+        doc = strict_json(raw.decode("utf-8-sig"))  # (a BOM: Windows editors)
     except (UnicodeDecodeError, ValueError) as exc:
         raise SessionError(f"not valid JSON: {exc}", file=str(path)) from None
     validate(doc, file=str(path))
