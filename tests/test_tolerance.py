@@ -312,9 +312,12 @@ def test_a_recording_made_with_other_principal_axes_is_the_same_session_to_round
     on a machine whose OpenBLAS kernel (SkylakeX) gave numpy's ``eigh`` other principal axes
     for the cylinder (its two equal moments leave them free): a real recording of another
     machine. It is not this run bit for bit; it is the same session, the cylinder's flight
-    within 1e-13 rad of it, turned about other axes by other round-off."""
+    within 1e-13 rad of it, turned about other axes by other round-off. Replayed as it was
+    made (``as_recorded``: its release fit followed the centre of mass, ``release_point``
+    cm, the default before 2026-12-07)."""
     other = Recording(Path(__file__).resolve().parent / "data" / "throw_and_catch_other_axes.mcap")
-    summary = replay(other, tolerance=Tolerance(1e-9, 1e-9))
+    summary = replay(other, tolerance=Tolerance(1e-9, 1e-9), as_recorded=True)
+    assert summary.as_recorded == {"release_point": "cm"}
     assert not summary.match and summary.first_divergence["frame"] == 61
     assert summary.within_tolerance is True
     far = summary.largest_departure["cylinder"]

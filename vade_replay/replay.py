@@ -2083,7 +2083,7 @@ _BEFORE_THE_KEY = {"slide_onset": "sub_step", "slide_off": "frame_end",
                    "block_event": "always", "flight_grace": "whole_base",
                    "coaxial_fit": "faces", "landing": "rests",
                    "contact_sweep": "frame_end", "velocities": "relative",
-                   "snap_velocity": "zero"}
+                   "snap_velocity": "zero", "release_point": "cm"}
 
 
 def _step_in_effect(recorded: dict, bound: str, before: float):

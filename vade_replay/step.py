@@ -248,8 +248,12 @@ def _follow_hands(f: _Frame) -> None:
         cm = pose.apply(body.center_of_mass)
         newest = velocity.new_sample(held.history, f.t_ns, cm, pose.rotation)
         history = (held.history + (newest,))[-keep:]
+        # The point of the part the hand holds it by (the hand's origin, in part axes, from
+        # the centre of mass): its path is fitted (``velocity.estimate``).
+        grip = sp.sub(held.hand_from_part.inverse().position, body.center_of_mass) \
+            if physics.release_point == "grip" else sp.ZERO3
         v, w = velocity.estimate(history, method=physics.release_velocity,
-                                 window=physics.release_window)
+                                 window=physics.release_window, grip=grip)
         f.parts[index] = part.moved(pose, v, w, Held(held.hand, held.hand_from_part, history,
                                                      grasp))
 
