@@ -367,3 +367,54 @@ def test_a_block_sliding_along_a_wall_slides_off_its_end(split):
     assert "slid_off_base" in [c for _, _, c in _transitions(ours)]
     theirs = run_records(_block_along_a_wall_to_a_rib("frame_end", None, split))
     assert [r.parts for r in ours] == [r.parts for r in theirs]
+
+
+def test_a_corner_constraint_the_base_leans_off_says_why_the_part_was_not_put_on_it():
+    """A physics audit: a block with a ``planes`` constraint (a plate and a wall) let go
+    exactly in the corner of a base leaning away from the wall (roll 20, pitch 25 deg):
+    gravity pulls it off the wall, so it is not put onto the corner, and the miss read
+    "released 0 mm and 0 deg off corner (tolerances 5 mm, 10 deg)", which says nothing of
+    why. It says so now."""
+    from vade_replay.replay import describe_miss, release_misses
+    from conftest import make_session
+    roll, pitch = 20.0, 25.0  # the wall's side raised: gravity pulls the block off it
+    q = sp.quat_from_euler_deg(roll, pitch, 0.0)
+    base_at = (0.0, 0.0, 1.1)
+    at = sp.add(base_at, sp.quat_rotate(q, (-0.3, 0.105, 0.03)))
+    block = {"name": "block", "shape": {"type": "box", "size": [0.05, 0.05, 0.04]},
+             "density": 2700, "pose": {"position": [0.5, -0.3, 0.76]},
+             "assembly": {"constraints": [{
+                 "type": "planes", "name": "corner",
+                 "part": [{"point": [0, 0, -0.02], "normal": [0, 0, -1]},
+                          {"point": [0, 0.025, 0], "normal": [0, 1, 0]}],
+                 "base": [{"point": [0, 0, 0.01], "normal": [0, 0, 1]},
+                          {"point": [0, 0.13, 0], "normal": [0, -1, 0]}]}]}}
+    doc = session_doc(
+        parts=[block], duration_s=1.5,
+        right_hand=[{"t": 0, "position": [0.5, -0.3, 0.76], "grip": False},
+                    {"t": 0.2, "grip": True},
+                    {"t": 0.8, "position": list(at), "euler_deg": [roll, pitch, 0]},
+                    {"t": 1.2, "grip": False}, {"t": 1.4, "position": [0.3, -0.5, 1.3]}],
+        base={"name": "plate_with_wall", "fixed": True,
+              "pose": {"position": list(base_at), "euler_deg": [roll, pitch, 0]},
+              "shape": {"type": "compound", "children": [
+                  {"type": "box", "size": [1.0, 0.3, 0.02]},
+                  {"type": "box", "size": [1.0, 0.02, 0.06],
+                   "pose": {"position": [0, 0.14, 0.04]}}]}})
+    doc["environment"] = [table(size=(2.0, 2.0, 0.04), z=0.5)]
+    records = run_records(doc)
+    scene = make_session(doc).build_scene()
+    released = next(r for r in records for e in r.events if e.kind == "PartReleased")
+    (miss,) = release_misses(scene, released, records[0].time_ns)
+    assert miss["pulled_off"] is True and miss["nearest_constraint"] == "corner"
+    assert describe_miss(miss).endswith(
+        "off corner, where gravity pulls it off a face of it (the base leans so that it does "
+        "not press the part onto each) (tolerances 5 mm, 10 deg): released_touching_base")
+    # Leaning towards the wall, it is put onto the corner: no miss.
+    doc["tracker"]["devices"]["right_hand"][2]["euler_deg"][0] = -20.0
+    doc["base"]["pose"]["euler_deg"][0] = -20.0
+    q = sp.quat_from_euler_deg(-20.0, pitch, 0.0)
+    doc["tracker"]["devices"]["right_hand"][2]["position"] = list(
+        sp.add(base_at, sp.quat_rotate(q, (-0.3, 0.105, 0.03))))
+    records = run_records(doc)
+    assert any(e.cause == "released_on_constraint" for r in records for e in r.events)

@@ -32,6 +32,7 @@ from . import spatial as sp
 from .analysis import SessionAnalysis, compare
 from .arrays import dots, norms, posed_points
 from .collision import SKIP_COAXIAL, SKIP_COPLANAR, CollisionWorld
+from .dynamics import onbase
 from .errors import ConfigError, RecordingError, SessionError, VadeError
 from .frames import FrameRecord, TrackerFrame
 from .modes import Cause, Mode
@@ -1359,6 +1360,12 @@ def release_misses(scene: Scene, record: FrameRecord, first_time_ns: int) -> lis
         # (``step._release_on_base``): that, not an end, is the miss.
         misfit = mate.misfit if mate.kind == "axis" \
             and scene.physics.coaxial_fit == "radial" else ()
+        # Within its tolerances and on it, but gravity pulls the part off a face of it (a
+        # physics audit: a two-plane corner leaning so that the part falls off the wall
+        # read "released 0 mm and 0 deg off corner", saying nothing of why).
+        g = sp.quat_rotate(sp.quat_conj(base_pose.rotation), scene.physics.gravity_slide)
+        lifted = mate.kind != "axis" and score <= 1.0 and not misfit and beyond <= 0.0 \
+            and onbase.normal_load(mate.kind, mate.base_dirs, None, g)[1]
         out.append({"frame": record.frame,
                     "time_s": (record.time_ns - first_time_ns) / 1e9, "part": event.part,
                     "cause": event.cause, "nearest_constraint": mate.name,
@@ -1367,7 +1374,7 @@ def release_misses(scene: Scene, record: FrameRecord, first_time_ns: int) -> lis
                     "angle_tolerance_deg": math.degrees(mate.angle_tolerance),
                     "beyond_end_m": 0.0 if misfit else beyond,
                     "misfit_m": list(misfit) if misfit else None,
-                    "landed": None})
+                    "pulled_off": bool(lifted), "landed": None})
     return out
 
 
@@ -1972,6 +1979,10 @@ def describe_miss(miss: dict) -> str:
         end = (f", which it does not fit (a face of it {misfit[0] * 1e3:.4g} to "
                f"{misfit[1] * 1e3:.4g} mm from the axis, across the wall at "
                f"{misfit[2] * 1e3:.4g} mm)")
+
+    if miss.get("pulled_off"):
+        end = (", where gravity pulls it off a face of it (the base leans so that it does "
+               "not press the part onto each)")
 
     def small(value: float) -> float:
         return 0.0 if abs(value) < 1e-9 else value  # round-off, not an offset (3.9e-14 mm)
