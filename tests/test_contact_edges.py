@@ -184,6 +184,37 @@ def test_a_part_let_go_against_a_wall_falls_along_it_onto_the_plate(grace):
     assert 0.96 <= records[-1].parts[0].position[2] - 0.02 <= 0.96 + 1e-4
 
 
+_CORNER_BASE_AT = (0.0, 0.0, 1.1)
+
+
+def _corner_session(roll: float, pitch: float, constraints=None, table_z: float = 0.72,
+                    duration_s: float = 1.8) -> dict:
+    """A fixed plate with a wall along its +y edge, tilted by ``roll`` and ``pitch``
+    (degrees), and a block (with ``constraints``) carried by the right hand to rest
+    exactly in the corner, bottom on the plate and side on the wall, and let go there."""
+    q = sp.quat_from_euler_deg(roll, pitch, 0.0)
+    corner = (-0.3, 0.105, 0.03)  # the block's centre: bottom on z 0.01, side on y 0.13
+    at = sp.add(_CORNER_BASE_AT, sp.quat_rotate(q, corner))
+    block = {"name": "block", "shape": {"type": "box", "size": [0.05, 0.05, 0.04]},
+             "density": 2700, "pose": {"position": [0.5, -0.3, 0.76]}}
+    if constraints:
+        block["assembly"] = {"constraints": constraints}
+    doc = session_doc(
+        parts=[block], duration_s=duration_s,
+        right_hand=[{"t": 0, "position": [0.5, -0.3, 0.76], "grip": False},
+                    {"t": 0.2, "grip": True},
+                    {"t": 0.8, "position": list(at), "euler_deg": [roll, pitch, 0]},
+                    {"t": 1.2, "grip": False}, {"t": 1.4, "position": [0.3, -0.5, 1.3]}],
+        base={"name": "plate_with_wall", "fixed": True,
+              "pose": {"position": list(_CORNER_BASE_AT), "euler_deg": [roll, pitch, 0]},
+              "shape": {"type": "compound", "children": [
+                  {"type": "box", "size": [1.0, 0.3, 0.02]},
+                  {"type": "box", "size": [1.0, 0.02, 0.06],
+                   "pose": {"position": [0, 0.14, 0.04]}}]}})
+    doc["environment"] = [table(size=(2.0, 2.0, 0.04), z=table_z)]
+    return doc
+
+
 @pytest.mark.parametrize("roll, pitch", [(20, 5), (35, 8), (5, 2)])
 def test_a_block_let_go_in_the_corner_of_a_plate_and_a_leaning_wall_rests_there(roll, pitch):
     """A physics audit: a fixed plate with a wall along one edge, tilted so that the wall
@@ -193,26 +224,9 @@ def test_a_block_let_go_in_the_corner_of_a_plate_and_a_leaning_wall_rests_there(
     as a surface it touched as it left, and came to rest on the plate's bottom face, 19.9
     mm inside the 20 mm plate (5 of 15 tilts). The plate's face, touched too, holds it:
     it rests there, bottom on the plate's top, for the rest of the run."""
-    q = sp.quat_from_euler_deg(float(roll), float(pitch), 0.0)
-    base_at = (0.0, 0.0, 1.1)
-    corner = (-0.3, 0.105, 0.03)  # the block's centre: bottom on z 0.01, side on y 0.13
-    at = sp.add(base_at, sp.quat_rotate(q, corner))
-    block = {"name": "block", "shape": {"type": "box", "size": [0.05, 0.05, 0.04]},
-             "density": 2700, "pose": {"position": [0.5, -0.3, 0.76]}}
-    doc = session_doc(
-        parts=[block], duration_s=1.8,
-        right_hand=[{"t": 0, "position": [0.5, -0.3, 0.76], "grip": False},
-                    {"t": 0.2, "grip": True},
-                    {"t": 0.8, "position": list(at), "euler_deg": [roll, pitch, 0]},
-                    {"t": 1.2, "grip": False}, {"t": 1.4, "position": [0.3, -0.5, 1.3]}],
-        base={"name": "plate_with_wall", "fixed": True,
-              "pose": {"position": list(base_at), "euler_deg": [roll, pitch, 0]},
-              "shape": {"type": "compound", "children": [
-                  {"type": "box", "size": [1.0, 0.3, 0.02]},
-                  {"type": "box", "size": [1.0, 0.02, 0.06],
-                   "pose": {"position": [0, 0.14, 0.04]}}]}})
-    doc["environment"] = [table(size=(2.0, 2.0, 0.04))]
+    doc = _corner_session(float(roll), float(pitch))
     records = run_records(doc)
+    base_at, q = _CORNER_BASE_AT, sp.quat_from_euler_deg(float(roll), float(pitch), 0.0)
     assert _transitions(records)[-1] == ("INHAND", "ONBASESTATIC", "released_touching_base")
     released = next(r.frame for r in records for e in r.events
                     if e.cause == "released_touching_base")
@@ -377,31 +391,13 @@ def test_a_corner_constraint_the_base_leans_off_says_why_the_part_was_not_put_on
     why. It says so now."""
     from vade_replay.replay import describe_miss, release_misses
     from conftest import make_session
-    roll, pitch = 20.0, 25.0  # the wall's side raised: gravity pulls the block off it
-    q = sp.quat_from_euler_deg(roll, pitch, 0.0)
-    base_at = (0.0, 0.0, 1.1)
-    at = sp.add(base_at, sp.quat_rotate(q, (-0.3, 0.105, 0.03)))
-    block = {"name": "block", "shape": {"type": "box", "size": [0.05, 0.05, 0.04]},
-             "density": 2700, "pose": {"position": [0.5, -0.3, 0.76]},
-             "assembly": {"constraints": [{
-                 "type": "planes", "name": "corner",
-                 "part": [{"point": [0, 0, -0.02], "normal": [0, 0, -1]},
-                          {"point": [0, 0.025, 0], "normal": [0, 1, 0]}],
-                 "base": [{"point": [0, 0, 0.01], "normal": [0, 0, 1]},
-                          {"point": [0, 0.13, 0], "normal": [0, -1, 0]}]}]}}
-    doc = session_doc(
-        parts=[block], duration_s=1.5,
-        right_hand=[{"t": 0, "position": [0.5, -0.3, 0.76], "grip": False},
-                    {"t": 0.2, "grip": True},
-                    {"t": 0.8, "position": list(at), "euler_deg": [roll, pitch, 0]},
-                    {"t": 1.2, "grip": False}, {"t": 1.4, "position": [0.3, -0.5, 1.3]}],
-        base={"name": "plate_with_wall", "fixed": True,
-              "pose": {"position": list(base_at), "euler_deg": [roll, pitch, 0]},
-              "shape": {"type": "compound", "children": [
-                  {"type": "box", "size": [1.0, 0.3, 0.02]},
-                  {"type": "box", "size": [1.0, 0.02, 0.06],
-                   "pose": {"position": [0, 0.14, 0.04]}}]}})
-    doc["environment"] = [table(size=(2.0, 2.0, 0.04), z=0.5)]
+    corner = [{"type": "planes", "name": "corner",
+               "part": [{"point": [0, 0, -0.02], "normal": [0, 0, -1]},
+                        {"point": [0, 0.025, 0], "normal": [0, 1, 0]}],
+               "base": [{"point": [0, 0, 0.01], "normal": [0, 0, 1]},
+                        {"point": [0, 0.13, 0], "normal": [0, -1, 0]}]}]
+    # The wall's side raised (roll 20): gravity pulls the block off the wall.
+    doc = _corner_session(20.0, 25.0, corner, table_z=0.5, duration_s=1.5)
     records = run_records(doc)
     scene = make_session(doc).build_scene()
     released = next(r for r in records for e in r.events if e.kind == "PartReleased")
@@ -411,10 +407,5 @@ def test_a_corner_constraint_the_base_leans_off_says_why_the_part_was_not_put_on
         "off corner, where gravity pulls it off a face of it (the base leans so that it does "
         "not press the part onto each) (tolerances 5 mm, 10 deg): released_touching_base")
     # Leaning towards the wall, it is put onto the corner: no miss.
-    doc["tracker"]["devices"]["right_hand"][2]["euler_deg"][0] = -20.0
-    doc["base"]["pose"]["euler_deg"][0] = -20.0
-    q = sp.quat_from_euler_deg(-20.0, pitch, 0.0)
-    doc["tracker"]["devices"]["right_hand"][2]["position"] = list(
-        sp.add(base_at, sp.quat_rotate(q, (-0.3, 0.105, 0.03))))
-    records = run_records(doc)
+    records = run_records(_corner_session(-20.0, 25.0, corner, table_z=0.5, duration_s=1.5))
     assert any(e.cause == "released_on_constraint" for r in records for e in r.events)
