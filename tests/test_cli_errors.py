@@ -708,7 +708,7 @@ def test_two_recordings_to_one_output_at_once_do_not_mix(tmp_path):
                    process=True).returncode == 0
 
 
-@pytest.mark.parametrize("how", ["dropped", "doubled"])
+@pytest.mark.parametrize("how", ["dropped", "doubled", "last"])
 def test_a_tracker_message_dropped_or_repeated_by_another_tool_is_named(tmp_path, how):
     """A researcher's trial: a recording passed through another tool that dropped (or
     repeated) one /tracker message replayed as "DIVERGED" (exit 1, the physics blamed),
@@ -725,13 +725,18 @@ def test_a_tracker_message_dropped_or_repeated_by_another_tool_is_named(tmp_path
             return None
         if topic == "/tracker" and index == 71 and how == "doubled":
             return tracker[70]  # frame 70's message again, in frame 71's place
+        if topic == "/tracker" and index == len(tracker) - 1 and how == "last":
+            return None  # (found by no later frame's number: a review)
         return data
     edited = tmp_path / f"{how}.mcap"
     copy_recording(golden, edited, edit)
     result = run_cli("vade-replay", str(edited))
     expected = {"dropped": "frame 70: tracker frame 70 is missing (frame 69 is followed by "
-                           "frame 71)",
-                "doubled": "frame 71: tracker frame 70 appears twice"}[how]
+                           "frame 70's other messages)",
+                "doubled": "frame 71: tracker frame 70 appears twice",
+                "last": f"frame {len(tracker) - 1}: tracker frame {len(tracker) - 1} is "
+                        f"missing (frame {len(tracker) - 2} is followed by frame "
+                        f"{len(tracker) - 1}'s other messages)"}[how]
     _assert_clean_error(result, f"{edited}: field /tracker frame: {expected}: the recording "
                                 "was edited, filtered or merged by another tool?")
     assert "DIVERGED" not in result.stdout + result.stderr

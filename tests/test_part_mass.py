@@ -148,7 +148,8 @@ def test_set_values_may_carry_a_mass_or_length_unit_and_an_unknown_one_is_named(
     # An angle's field takes an angle unit, as --tolerance does (a researcher's trial:
     # 35deg was refused); its number is in degrees, the field's unit.
     key = "parts.sleeve.constraints.bore_on_shaft.tolerance.angle_deg"
-    assert float(_in_session_units(key, "35deg", "mm")) == pytest.approx(35.0, rel=1e-15)
+    assert float(_in_session_units(key, "35deg", "mm")) == 35.0
+    assert float(_in_session_units(key, "30deg", "m")) == 30.0  # (not 29.999999999999996)
     assert float(_in_session_units(key, "0.5rad", "m")) == pytest.approx(28.64788975654116)
     with pytest.raises(ConfigError, match="has an angle unit, and this is not an angle"):
         _in_session_units("physics.grab_radius", "2deg", "m")

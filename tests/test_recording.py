@@ -362,34 +362,19 @@ def test_an_interrupted_recording_says_where_its_frames_are(tmp_path, capsys):
                                        "session's end (interrupted); replayed the 10 frames"
                                        ) in result.stderr
     assert not Recording(RECORDINGS / "drop_on_table.mcap").stopped
-    # The next run of another take to the same output does not write over those frames (a
-    # user's trial: an interrupted take was lost without a word), nor does a replay's -o of
-    # another recording; --force does.
+    # The next run to the same output does not write over those frames (a user's trial:
+    # an interrupted take was lost without a word), nor does a replay's -o; --force does.
     kept_bytes = partial.read_bytes()
-    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
-    doc["tracker"]["devices"]["right_hand"][-1]["position"][0] += 0.01  # another take
-    other_take = tmp_path / "take2.json"
-    other_take.write_text(json.dumps(doc))
-    again = run_cli("vade-record", str(other_take), "-o", str(out))
+    again = run_cli("vade-record", str(RECORDINGS / "drop_on_table.json"), "-o", str(out))
     assert again.returncode == 2 and "Traceback" not in again.stderr
     assert again.stderr.startswith(f"error: {out}: {partial} holds the frames a run that "
                                    "stopped early kept"), again.stderr
     assert "--force" in again.stderr
-    replayed = run_cli("vade-replay", str(RECORDINGS / "throw_and_catch.mcap"), "-o", str(out))
+    replayed = run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"), "-o", str(out))
     assert replayed.returncode == 2 and str(partial) in replayed.stderr
     assert partial.read_bytes() == kept_bytes and not out.exists()
-    # The same session again (or a replay of its recording: the same session and physics)
-    # makes those frames again: replaced, with a note (a researcher's trial: an
-    # interrupted replay's -o refused the replay run again until --force).
-    same = run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"), "-o", str(out))
-    assert same.returncode == 0, same.stderr
-    assert (f"note: replacing {partial}, which a run of this session that stopped early "
-            "left: this run makes its frames again") in same.stderr
-    assert out.exists() and not partial.exists()
-    out.unlink()
-    assert interrupted_recording(session, out, 10) == 130
-    capsys.readouterr()
-    forced = run_cli("vade-record", str(other_take), "-o", str(out), "--force")
+    forced = run_cli("vade-record", str(RECORDINGS / "drop_on_table.json"), "-o", str(out),
+                     "--force")
     assert forced.returncode == 0 and out.exists() and not partial.exists()
     # What is not a recording there is not called one (a review), and is kept all the same.
     partial.write_text("my notes\n")
@@ -500,6 +485,33 @@ def test_damage_that_still_parses_in_a_message_index_metadata_or_the_summary_is_
             broken.write_bytes(bytes(damaged))
             warned = replay(Recording(broken)).warnings
             assert (warned != []) == (opcode == 0x0B), opcode
+
+
+def test_the_crc_checks_neither_crash_nor_misreport_at_the_file_s_edges(tmp_path):
+    """A review: the footer's summary start damaged in its top byte crashed the check with
+    a traceback (a seek past any file), and in another byte lost a mismatch already found;
+    bytes after the closing magic (two recordings joined) were reported as a damaged
+    summary, the footer taken at the file's end. Now: a summary start outside the file is
+    the summary's damage (its CRC covers that field), and the footer is checked where it
+    was read."""
+    import struct
+    path = tmp_path / "whole.mcap"
+    record(load(RECORDINGS / "drop_on_table.json"), path)
+    whole = path.read_bytes()
+    (footer_at,) = [at for opcode, at, _ in _records_at(whole) if opcode == 0x02]
+    for k in range(8):  # each byte of the footer's summary start
+        damaged = bytearray(whole)
+        damaged[footer_at + 9 + k] ^= 0x80
+        broken = tmp_path / f"start{k}.mcap"
+        broken.write_bytes(bytes(damaged))
+        summary = replay(Recording(broken))
+        assert summary.match and len(summary.warnings) == 1, (k, summary.warnings)
+        assert "the CRC-32 of its summary" in summary.warnings[0], (k, summary.warnings)
+    for tail in (b"\n", whole):  # a stray byte, or a second recording joined on
+        joined = tmp_path / "joined.mcap"
+        joined.write_bytes(whole + tail)
+        assert not any("CRC-32" in w for w in replay(Recording(joined)).warnings), tail[:4]
+    assert struct  # (the layout: opcode, length, summary start, summary offset start, CRC)
 
 
 def test_a_recording_damaged_after_its_data_end_keeps_every_frame(tmp_path):

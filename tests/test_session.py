@@ -575,6 +575,11 @@ def test_silent_no_op_sessions_are_warned_of_and_a_bom_is_read():
     doc["tracker"]["devices"] = {}
     assert make_session(doc).warnings() == [
         "tracker.devices is empty: no hand, head or tool moves, so nothing is grabbed"]
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+    doc["tracker"]["csv_between"] = "hold"  # (a review: silent on keyframes)
+    assert make_session(doc).warnings() == [
+        "tracker.csv_between applies to a tracker log (tracker.csv); keyframes are always "
+        "interpolated: it does nothing here"]
     from vade_replay import session as session_mod
     raw = (RECORDINGS / "drop_on_table.json").read_bytes()
     with_bom = session_mod.parse(b"\xef\xbb\xbf" + raw, {}, source="bom.json")

@@ -211,6 +211,11 @@ def decode_tracker(data: bytes) -> TrackerFrame:
     return TrackerFrame(frame, time_ns, tuple(samples))
 
 
+# Why a recording whose tracker messages are not numbered one a frame cannot be replayed.
+_EDITED: Final = (": the recording was edited, filtered or merged by another tool? Its "
+                  "inputs are not the ones recorded, so it cannot be replayed")
+
+
 def recorded_frames(messages: Iterator[Any], topics: dict[int, str],
                     other: Callable[[Any], None],
                     pending: list[RecordedFrame]) -> Iterator[RecordedFrame]:
@@ -222,6 +227,7 @@ def recorded_frames(messages: Iterator[Any], topics: dict[int, str],
     ``topics`` (channel id -> topic) up to date. Compiled, the per-message work of
     ``Recording.frames`` in C."""
     current: RecordedFrame | None = None
+    parts_seen = False  # the frame's /parts message read (one a frame)
     for record in messages:
         if type(record) is tuple:
             channel_id, data = record
@@ -254,9 +260,21 @@ def recorded_frames(messages: Iterator[Any], topics: dict[int, str],
                         field=f"{TRACKER_TOPIC} time_ns", frame=inputs.frame)
                 current = RecordedFrame(inputs, [])
                 pending.append(current)
+                parts_seen = False
             elif topic is not None and topic in CHANNELS:
                 if current is None:
                     raise RecordingError(f"{topic} message before the first tracker frame")
+                if topic == PARTS_TOPIC:
+                    if parts_seen:
+                        # The next frame's derived messages with no tracker message before
+                        # them: one dropped, the file's last too (a review: that one read
+                        # as a divergence, found by no later frame's number).
+                        missing = current.inputs.frame + 1
+                        raise RecordingError(
+                            f"tracker frame {missing} is missing (frame {current.inputs.frame}"
+                            f" is followed by frame {missing}'s other messages)"
+                            + _EDITED, field=f"{TRACKER_TOPIC} frame", frame=missing)
+                    parts_seen = True
                 current.derived.append((topic, data))
         else:
             other(record)
@@ -274,8 +292,8 @@ def _misnumbered(expected: int, found: int) -> str:
             + f" (frame {expected - 1} is followed by frame {found})"
     else:
         what = f"tracker frame {found} comes after frame {expected - 1}"
-    return (what + ": the recording was edited, filtered or merged by another tool? Its "
-            "inputs are not the ones recorded, so it cannot be replayed")
+    return what + _EDITED
+
 
 
 def snapshot_dict(s: PartSnapshot) -> dict:

@@ -204,6 +204,10 @@ def _records(stream) -> Iterator[Header | Attachment | Chunk | Channel | Message
         padding = length - (data.count - count)
         if padding > 0:
             data.read(padding)
+        if opcode == Opcode.DATA_END or opcode == Opcode.FOOTER:
+            # Where it begins, for the CRC checks (``_crc_mismatches``): not where a whole
+            # file's would be, in a file with bytes after its end (a review).
+            record._at = count - _RECORD_HEAD.size  # type: ignore[union-attr]
         if isinstance(record, _YIELDED):
             yield record
         if opcode == Opcode.FOOTER:
@@ -815,20 +819,27 @@ def _crc_mismatches(path: Path, closing: list) -> list[str]:
     indexes and statistics other MCAP tools seek by, with the footer's first fields). A
     replay reads neither the message indexes nor the summary, so damage there that still
     parses went unnoticed (a damaged golden read by another tool). A CRC of 0 is none
-    taken (MCAP; recordings before this version have none of the data section). Read in
-    blocks, so memory stays flat; ~1 ms a megabyte."""
+    taken (MCAP; recordings before this version have none of the data section). The two
+    records are found where they were read (``_records``), else where a whole file has
+    them. A footer whose summary start lies outside the file is damage to the summary's
+    CRC too (it covers that field). Read in blocks, so memory stays flat; ~1 ms a
+    megabyte."""
     data_end = next((r for r in closing if isinstance(r, DataEnd)), None)
     footer = next((r for r in closing if isinstance(r, Footer)), None)
     if footer is None:
         return []
+    summary = "its summary (the indexes and statistics other MCAP tools seek by)"
     out: list[str] = []
     try:
         with open(path, "rb") as stream:
             size = os.fstat(stream.fileno()).st_size
-            footer_at = size - _FOOTER_TAIL
-            # The data end record comes just before the summary (just before the footer where
-            # there is no summary): where its head is not there, it is not checked.
-            end_at = (footer.summary_start or footer_at) - len(_DATA_END_HEAD) - 4
+            footer_at = getattr(footer, "_at", size - _FOOTER_TAIL)
+            summary_start = footer.summary_start
+            if not 0 <= footer_at <= size or not 0 <= summary_start <= footer_at:
+                return [summary] if footer.summary_crc else []
+            end_at = getattr(data_end, "_at", None)
+            if end_at is None:  # (where a whole file has it: just before the summary)
+                end_at = (summary_start or footer_at) - len(_DATA_END_HEAD) - 4
 
             def crc(start: int, stop: int, value: int = 0) -> int:
                 stream.seek(start)
@@ -840,21 +851,20 @@ def _crc_mismatches(path: Path, closing: list) -> list[str]:
                     start += len(block)
                 return value
 
-            if data_end is not None and data_end.data_section_crc and 0 <= end_at:
+            if data_end is not None and data_end.data_section_crc and 0 <= end_at < size:
                 stream.seek(end_at)
                 if stream.read(len(_DATA_END_HEAD)) == _DATA_END_HEAD \
                         and crc(0, end_at) != data_end.data_section_crc:
                     out.append("its data outside the frames and the stored session (a message "
                                "index or metadata)")
             if footer.summary_crc:
-                fields = struct.pack("<BQQQ", Opcode.FOOTER, 8 + 8 + 4, footer.summary_start,
+                fields = struct.pack("<BQQQ", Opcode.FOOTER, 8 + 8 + 4, summary_start,
                                      footer.summary_offset_start)
-                start = min(footer.summary_start or footer_at, footer_at)
-                if zlib.crc32(fields, crc(start, footer_at)) != footer.summary_crc:
-                    out.append("its summary (the indexes and statistics other MCAP tools "
-                               "seek by)")
-    except OSError:
-        return []
+                if zlib.crc32(fields, crc(summary_start or footer_at, footer_at)) \
+                        != footer.summary_crc:
+                    out.append(summary)
+    except (OSError, ValueError, OverflowError, struct.error):
+        pass  # (what was found stands; the rest cannot be read to be checked)
     return out
 
 

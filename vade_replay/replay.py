@@ -871,7 +871,10 @@ def _in_session_units(key: str, text: str, units: str) -> str:
         if not key.endswith("_deg"):
             raise ConfigError(f"{text!r} has an angle unit, and this is not an angle",
                               field=f"--set {key}")
-        return _finite_text(float(number) * _ANGLE_UNITS[unit] * 180.0 / math.pi, text, key)
+        # (In degrees as given: 30deg through radians came back 29.999999999999996.)
+        degrees = float(number) if unit == "deg" \
+            else float(number) * _ANGLE_UNITS[unit] * 180.0 / math.pi
+        return _finite_text(degrees, text, key)
     raise ConfigError(f"{text!r}: unknown unit {unit!r} ({known}; angles: "
                       f"{', '.join(_ANGLE_UNITS)}; or a plain number: a length in the "
                       "session's units, a mass in kg, an angle in degrees)",
@@ -1091,38 +1094,17 @@ def refuse_replacing(out: str | Path, session: Session, scene: Scene) -> str | N
     older version's recording replaced without a word)."""
     path = Path(out)
     kept = left_partial(path)
-    notes = []
     if kept is not None:
-        if _made_again(kept, session, scene):
-            # The frames a run of this very session and physics kept: this run makes them
-            # again (a researcher's trial: an interrupted replay's -o refused the replay
-            # run again until --force).
-            notes.append(f"replacing {kept}, which a run of this session that stopped early "
-                         "left: this run makes its frames again")
-        else:
-            # (A user's trial: an interrupted take's frames, kept there, were written over
-            # by the next run to the same output without a word.)
-            held = {True: "the frames a run that stopped early kept",
-                    False: "something that is not a recording",
-                    None: "what a run left there"}[holds_recording(kept)]
-            raise ConfigError(f"{kept} holds {held} ({_size(kept)}); move it away to keep "
-                              "it, or pass --force to write over it", file=str(out))
-    note = _replacing(path, out, session, scene)
-    return "; ".join(notes + ([note] if note else [])) or None
-
-
-def _made_again(kept: Path, session: Session, scene: Scene) -> bool:
-    """Whether a ``.partial`` a run left holds a recording of this session (its document
-    and files) with this physics: its frames are then the first of this run's, made again
-    (a recording is determined by its session and physics)."""
-    if not holds_recording(kept):
-        return False
-    try:
-        theirs = Recording(kept)
-        return (theirs.session.doc == session.doc and theirs.session.files == session.files
-                and theirs.metadata.get("physics") == physics_metadata(scene.physics))
-    except (VadeError, OSError, ValueError):
-        return False
+        # (A user's trial: an interrupted take's frames, kept there, were written over by
+        # the next run to the same output without a word. Not replaced even by a run of the
+        # same session: a replay's frames come from its recording's inputs, and a version
+        # may make other frames of the same session and physics: a review.)
+        held = {True: "the frames a run that stopped early kept",
+                False: "something that is not a recording",
+                None: "what a run left there"}[holds_recording(kept)]
+        raise ConfigError(f"{kept} holds {held} ({_size(kept)}); move it away to keep it, "
+                          "or pass --force to write over it", file=str(out))
+    return _replacing(path, out, session, scene)
 
 
 def _replacing(path: Path, out: str | Path, session: Session, scene: Scene) -> str | None:

@@ -498,11 +498,12 @@ def _spread(doc: dict, mesh: trimesh.Trimesh, length_factor: float,
     if "density" not in doc and "mass" not in doc:
         raise SessionError("give its density, its mass or its mass_properties", file=file,
                            field=where)
-    if not mesh.is_watertight and '"file"' not in json.dumps(doc["shape"]):
+    size = float(np.max(mesh.extents)) if len(mesh.vertices) else 0.0
+    if not mesh.is_watertight and '"file"' not in json.dumps(doc["shape"]) \
+            and size < _OPEN_WHEN_SMALL_M:
         # A shape of its own (box, tube, ...) is closed at any size a hand holds, but
         # trimesh drops faces of one a millimetre or so across (a researcher's trial: a
         # metre session labelled "in", a 0.05 in tube, was told to give mass_properties).
-        size = float(np.max(mesh.extents)) if len(mesh.vertices) else 0.0
         raise SessionError(
             f"it is {size * 1e3:.3g} mm across, too small for its mesh to close: are the "
             f"session's units right? (lengths are in its units, "
@@ -571,6 +572,9 @@ def _body(doc: dict, length_factor: float, files: dict[str, bytes], *, where: st
 
 # A part smaller than this across is refused as a units slip (0.1 mm).
 _MIN_SIZE_M = 1e-4
+# A shape of the session's own (not a mesh file) this small left open by trimesh is asked
+# about as a units slip (5 mm); a larger one is an open mesh as a file's is.
+_OPEN_WHEN_SMALL_M = 5e-3
 _UNIT_NAMES = {factor: name for name, factor in UNIT_TO_M.items()}
 
 

@@ -444,6 +444,9 @@ class Session:
         out += _friction_inverted(self.doc)
         out += _unknown_body_keys(self.doc)
         tracker = self.doc["tracker"]
+        if "csv_between" in tracker and "csv" not in tracker:
+            out.append("tracker.csv_between applies to a tracker log (tracker.csv); "
+                       "keyframes are always interpolated: it does nothing here")
         devices = tracker.get("devices")
         if devices is not None and not devices:
             out.append("tracker.devices is empty: no hand, head or tool moves, so nothing is "
