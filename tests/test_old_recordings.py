@@ -43,6 +43,7 @@ def test_an_old_recording_names_the_changed_defaults_and_replays_with_them():
     assert changed["release_velocity"] == {"recorded": "window_fit",
                                            "now": "window_fit_corners"}
     assert changed["release_point"] == {"recorded": "cm", "now": "grip"}
+    assert changed["release_span_s"] == {"recorded": 0.0, "now": 0.1}
     assert changed["slide_step_s"] == {"recorded": 1 / 180, "now": 1 / 60}
     # Before two hands lifted anything, they lifted what one hand lifts.
     assert changed["two_hand_max_mass_kg"] == {"recorded": 5.0, "now": 15.0}
@@ -50,7 +51,7 @@ def test_an_old_recording_names_the_changed_defaults_and_replays_with_them():
                             "final_pose_check", "block_cut", "block_event", "flight_grace",
                             "release_velocity", "coaxial_fit", "landing", "contact_sweep",
                             "velocities", "snap_velocity", "two_hand_max_mass_kg",
-                            "release_point"}
+                            "release_point", "release_span_s"}
     # analytic brings its own 1/180 s, so the step need not be set.
     again = replay(Recording(OLD), as_recorded=True)
     assert again.match, again.first_divergence
@@ -58,7 +59,7 @@ def test_an_old_recording_names_the_changed_defaults_and_replays_with_them():
                                  "coaxial_fit": "faces", "contact_sweep": "frame_end",
                                  "final_pose_check": "frame_end", "flight_grace": "whole_base",
                                  "landing": "rests", "release_point": "cm",
-                                 "release_velocity": "window_fit",
+                                 "release_span_s": 0.0, "release_velocity": "window_fit",
                                  "slide_integrator": "analytic", "slide_off": "frame_end",
                                  "slide_onset": "sub_step", "snap_velocity": "zero",
                                  "two_hand_max_mass_kg": 5.0, "velocities": "relative"}
@@ -75,7 +76,7 @@ def test_the_cli_says_so_beside_the_divergence(tmp_path):
     many = run_cli("vade-replay", str(OLD), str(RECORDINGS / "gear_pendulum.mcap"))
     assert ("(made with other physics defaults: block_cut, block_event, coaxial_fit, "
             "contact_sweep, final_pose_check, flight_grace, landing, release_point, "
-            "release_velocity, "
+            "release_span_s, release_velocity, "
             "slide_integrator, slide_off, "
             "slide_onset, slide_step_s, snap_velocity, two_hand_max_mass_kg, velocities; "
             f"vade-replay {OLD} --as-recorded replays it with them)") in many.stdout
@@ -85,7 +86,7 @@ def test_the_cli_says_so_beside_the_divergence(tmp_path):
         "as recorded (block_cut='both', block_event='always', coaxial_fit='faces', "
         "contact_sweep='frame_end', "
         "final_pose_check='frame_end', flight_grace='whole_base', landing='rests', "
-        "release_point='cm', release_velocity='window_fit', "
+        "release_point='cm', release_span_s=0.0, release_velocity='window_fit', "
         "slide_integrator='analytic', slide_off='frame_end', slide_onset='sub_step', "
         "snap_velocity='zero', "
         "two_hand_max_mass_kg=5.0, velocities='relative'): match: 241 frames")
@@ -186,7 +187,7 @@ def test_vade_goldens_check_says_a_default_changed_since_a_golden_was_recorded(t
     assert "DIVERGED first divergence at frame" in result.stdout
     assert ("recorded with other physics defaults: block_cut, block_event, coaxial_fit, "
             "contact_sweep, final_pose_check, flight_grace, landing, release_point, "
-            "release_velocity, "
+            "release_span_s, release_velocity, "
             "slide_integrator, slide_off, "
             "slide_onset, slide_step_s, snap_velocity, two_hand_max_mass_kg, velocities; "
             f"vade-replay {tmp_path / 'shaft_slide_off.mcap'} --as-recorded replays it with "

@@ -191,10 +191,12 @@ def test_devices_stamped_apart_move_between_their_own_samples(head_hz, offset):
     the sample held (and its error, for a log recorded so before)."""
     log = _async_log(head_hz, offset).encode()
 
-    def released(between=None):
+    def released(between=None, span=None):
         doc = _csv_doc()
         if between:
             doc["tracker"]["csv_between"] = between
+        if span is not None:
+            doc["physics"] = {**doc.get("physics", {}), "release_span_s": span}
         records = run_records(doc, {"log.csv": log})
         (event,) = [e for r in records for e in r.events if e.kind == "PartReleased"]
         return event.linear_velocity, records
@@ -205,8 +207,11 @@ def test_devices_stamped_apart_move_between_their_own_samples(head_hz, offset):
     rising = [r.parts[0].linear_velocity[2] for r in records
               if 0.95 <= r.time_ns * 1e-9 <= 1.28 and r.parts[0].mode == "INHAND"]
     assert len(rising) > 40 and max(abs(v - 1.0) for v in rising) < 1e-6
-    held, _ = released("hold")
-    assert abs(held[2] - 1.0) > 0.05  # the error kept where asked for
+    # Held between samples and fitted over seven frames alone, as before (both asked
+    # for), the error comes back: 16-28 %. (Each alone is mended by the other: the fit's
+    # 0.1 s span, ``release_span_s``, picks frames a 60 Hz step apart.)
+    held, _ = released("hold", 0.0)
+    assert abs(held[2] - 1.0) > 0.1
 
 
 def test_a_log_device_is_interpolated_only_between_its_own_samples():
@@ -235,6 +240,9 @@ def test_a_log_device_is_interpolated_only_between_its_own_samples():
     ("2.5,left_foot,0,0,1,1,0,0,0,0", "device"),
     ("0.5,right_hand,0,0,1,0,0,0,0,0", "q0..q3"),
     ("0.1,right_hand,0,0,1,1,0,0,0,0", "time"),
+    # An empty cell names its column (an engineer's trial: "could not convert string to
+    # float: ''" did not).
+    ("2.5,right_hand,0,,1,1,0,0,0,0", "line 10: y: unreadable row: y is empty, not a number"),
 ])
 def test_bad_csv_rows_are_named(bad, field):
     session = make_session(_csv_doc(), {"log.csv": (CSV + bad + "\n").encode()})
@@ -707,3 +715,54 @@ def test_a_recognition_tolerance_no_hand_can_meet_is_warned_of(distance, warned)
     if warned:
         assert found[0].startswith("parts[0].assembly.constraints[0].tolerance.distance is "
                                    "0.012 mm: it is in the session's units (m)")
+
+
+def test_a_log_whose_times_all_read_as_one_is_warned_of(tmp_path):
+    """An engineer's trial: epoch times in ms written as ``1.765e+12`` read as one time:
+    "recorded 540 frames (0.00 s)" and no word of it."""
+    from vade_replay.replay import record
+    rows = [f"1.765e+12,right_hand,{x},0,790,1,0,0,0,0" for x in range(40)]
+    log = ("time,device,x,y,z,q0,q1,q2,q3,grip\n" + "\n".join(rows) + "\n").encode()
+    doc = _csv_doc()
+    doc["tracker"]["csv_time_unit"] = "ms"
+    warnings = record(make_session(doc, {"log.csv": log}), tmp_path / "t.mcap").warnings
+    assert ("every one of the 40 frames has the same time: a tracker log's times written "
+            "with too few digits (1.765e+12), or in another unit than "
+            "tracker.csv_time_unit? Nothing moves in no time") in warnings
+    assert not any("same time" in w
+                   for w in record(make_session(_csv_doc(), {"log.csv": CSV.encode()}),
+                                   tmp_path / "u.mcap").warnings)
+
+
+def test_a_still_hand_in_a_log_of_unaligned_devices_lets_go_at_rest():
+    """An engineer's trial: a headset at 90 Hz and a controller at 120 Hz on clocks of
+    their own, 0.3 mm of noise: every stamp a frame (~210 a second here), so the 7-frame
+    release window spanned ~30 ms, two of the hand's own samples, and a pin held still let
+    go at ~0.1 m/s of noise. The fit spans at least ``release_span_s`` (0.1 s: what 7
+    frames span at 60 Hz), over the hand's own 12 samples: under 0.025 m/s, the noise a
+    quadratic over 0.1 s leaves (0.010 m/s here); ``release_span_s`` 0 (as before) keeps
+    the old error (0.058 m/s here)."""
+    rng = np.random.default_rng(7)
+    rows = []
+    for k in range(int(1.6 * 120)):
+        t = 0.0013 + k / 120
+        x, y, z = (float(v) for v in rng.normal(0.0, 0.3, 3))
+        rows.append((t, f"{t:.6f},right_hand,{x:.4f},{y:.4f},{790 + z:.4f},1,0,0,0,"
+                        f"{int(0.1 <= t < 1.5)}"))
+    for k in range(int(1.6 * 90)):
+        t = 0.0041 + k / 90
+        rows.append((t, f"{t:.6f},head,-600,0,1600,1,0,0,0,"))
+    rows.sort(key=lambda row: row[0])
+    log = ("time,device,x,y,z,q0,q1,q2,q3,grip\n" + "\n".join(r for _, r in rows)
+           + "\n").encode()
+
+    def released(span=None):
+        doc = _csv_doc()
+        if span is not None:
+            doc.setdefault("physics", {})["release_span_s"] = span
+        records = run_records(doc, {"log.csv": log})
+        (event,) = [e for r in records for e in r.events if e.kind == "PartReleased"]
+        return math.dist(event.linear_velocity, (0.0, 0.0, 0.0))
+
+    spanned, windowed = released(), released(0.0)
+    assert spanned < 0.025 and windowed > 3.0 * spanned, (spanned, windowed)

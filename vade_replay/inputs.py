@@ -134,14 +134,23 @@ def _csv_row(row: list[str], col: dict[str, int], line_no: int, *, file: str, fa
     if len(row) < len(col) or len(row) <= max(col.values()):
         raise SessionError(f"{len(row)} values where the header has "
                            f"{max(col.values()) + 1} columns", file=file, field=where)
+    column = "time"
     try:
         t_ns = _parse_time_ns(row[col["time"]].strip(), time_unit)
         device = row[col["device"]].strip()
-        position = tuple(float(row[col[c]]) * factor for c in ("x", "y", "z"))
-        q = [float(row[col[c]]) for c in ("q0", "q1", "q2", "q3")]
+        values = []
+        for column in ("x", "y", "z", "q0", "q1", "q2", "q3"):
+            values.append(float(row[col[column]]))
+        position = (values[0] * factor, values[1] * factor, values[2] * factor)
+        q = values[3:]
         grip_text = row[col["grip"]].strip().lower()
     except (ValueError, IndexError, OverflowError) as exc:
-        raise SessionError(f"unreadable row: {exc}", file=file, field=where) from None
+        # (Naming the column: an engineer's trial read "could not convert string to
+        # float: ''" of an empty cell, and looked for it.)
+        text = row[col[column]].strip() if col[column] < len(row) else ""
+        what = "empty" if not text else repr(text)
+        raise SessionError(f"unreadable row: {column} is {what}, not a number ({exc})",
+                           file=file, field=f"{where}: {column}") from None
     if not 0 <= t_ns < 2**63:
         raise SessionError("time must be at least 0 and below 2^63 ns (292 years)", file=file,
                            field=f"{where}: time")

@@ -1248,6 +1248,13 @@ def record(session: Session, out: str | Path, *,
             raise
         if first_time is not None:
             summary.warnings += watch.warnings(first_time)  # (kept in the file: the same list)
+            if summary.frames > 1 and summary.duration_s == 0.0:
+                # (An engineer's trial: epoch times in ms written as 1.765e+12 read as one
+                # time, "recorded 540 frames (0.00 s)" and nothing else.)
+                summary.warnings.append(
+                    f"every one of the {summary.frames} frames has the same time: a "
+                    "tracker log's times written with too few digits (1.765e+12), or in "
+                    "another unit than tracker.csv_time_unit? Nothing moves in no time")
             summary.warnings += fallen_past_everything(scene, record_, first_time)
         writer.close(complete_as=target)
     if interrupts.pending:
@@ -2076,7 +2083,7 @@ _BEFORE_THE_KEY = {"slide_onset": "sub_step", "slide_off": "frame_end",
                    "block_event": "always", "flight_grace": "whole_base",
                    "coaxial_fit": "faces", "landing": "rests",
                    "contact_sweep": "frame_end", "velocities": "relative",
-                   "snap_velocity": "zero", "release_point": "cm"}
+                   "snap_velocity": "zero", "release_point": "cm", "release_span_s": 0.0}
 
 
 def _step_in_effect(recorded: dict, bound: str, before: float):

@@ -100,6 +100,11 @@ class Physics:
     # window_fit_stops: before window_fit_corners (no corner check)
     release_velocity: str = "window_fit_corners"
     release_window: int = 7
+    # The release fit spans at least this long (s), the last release_window samples and
+    # those before them within it: 0.1 s, what seven 60 Hz frames span, so a log of
+    # unaligned devices (a frame at every stamp) is fitted over as long, not over 18 ms of
+    # noise. 0: the window's samples alone, as before this key.
+    release_span_s: float = 0.1
     # grip: the release fit follows the point of the part the hand holds it by, and the
     # centre of mass's velocity is the rigid body's (``velocity.estimate``); cm: the
     # centre of mass's own path, as before this key (a part turned in the hand, its centre

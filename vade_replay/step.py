@@ -228,6 +228,7 @@ def _move_base(f: _Frame) -> None:
 def _follow_hands(f: _Frame) -> None:
     physics = f.scene.physics
     keep = max(physics.release_window, 2)
+    span_ns = round(physics.release_span_s * 1e9)
     for index in f.awake:
         part = f.parts[index]
         if part.mode is not INHAND and part.mode is not ONTOOL:
@@ -247,13 +248,14 @@ def _follow_hands(f: _Frame) -> None:
         pose = hand.compose(held.hand_from_part)
         cm = pose.apply(body.center_of_mass)
         newest = velocity.new_sample(held.history, f.t_ns, cm, pose.rotation)
-        history = (held.history + (newest,))[-keep:]
+        history = velocity.kept(held.history + (newest,), keep, span_ns)
         # The point of the part the hand holds it by (the hand's origin, in part axes, from
         # the centre of mass): its path is fitted (``velocity.estimate``).
         grip = sp.sub(held.hand_from_part.inverse().position, body.center_of_mass) \
             if physics.release_point == "grip" else sp.ZERO3
         v, w = velocity.estimate(history, method=physics.release_velocity,
-                                 window=physics.release_window, grip=grip)
+                                 window=physics.release_window, grip=grip,
+                                 span_ns=span_ns)
         f.parts[index] = part.moved(pose, v, w, Held(held.hand, held.hand_from_part, history,
                                                      grasp))
 

@@ -153,8 +153,54 @@ def _coefficient(n: int, y0: float, y1: float, y2: float, s1: float, s2: float, 
     return n * (y1 * s4 - s3 * y2) - y0 * (s1 * s4 - s3 * s2) + s2 * (s1 * y2 - y1 * s2)
 
 
+def kept(history: tuple, window: int, span_ns: int) -> tuple:
+    """The samples of ``history`` (oldest first) a fit needs: the last ``window``, and
+    before them those within ``span_ns`` of the newest (``estimate``)."""
+    n = len(history)
+    if n <= window:
+        return history
+    first = n - window
+    if span_ns > 0:
+        newest: tuple = history[n - 1]
+        t_new: int = newest[0]
+        while first > 0:
+            older: tuple = history[first - 1]
+            t_old: int = older[0]
+            if t_new - t_old > span_ns:
+                break
+            first -= 1
+    return history[first:]
+
+
+def _spaced(samples: list, window: int, span_ns: int) -> list:
+    """At most ``window`` of ``samples`` (oldest first), the newest and, going back, each
+    at least three quarters of ``span_ns / (window - 1)`` before the one kept after it:
+    the stream as the fit and its checks were made for, a frame every 1/60 s or more
+    (every one at 60 Hz or less, where this is the last ``window``). Denser frames (a log
+    of unaligned devices, a frame at every stamp: several between two of the hand's own
+    samples, joined by straight lines) made the stop and corner checks take a hand's own
+    noise between two samples for its steps (an engineer's trial: a still hand let go at
+    0.08 m/s whatever the window)."""
+    if span_ns <= 0 or window < 2:
+        return samples[-window:]
+    gap = 0.75 * span_ns / (window - 1)
+    out = [samples[-1]]
+    newest: tuple = samples[-1]
+    t_kept: int = newest[0]
+    for i in range(len(samples) - 2, -1, -1):
+        if len(out) >= window:
+            break
+        sample: tuple = samples[i]
+        t: int = sample[0]
+        if t_kept - t >= gap:
+            out.append(sample)
+            t_kept = t
+    out.reverse()
+    return out
+
+
 def estimate(history: tuple, *, method: str, window: int,
-             grip: sp.Vec3 = sp.ZERO3) -> tuple[sp.Vec3, sp.Vec3]:
+             grip: sp.Vec3 = sp.ZERO3, span_ns: int = 0) -> tuple[sp.Vec3, sp.Vec3]:
     """Linear and angular velocity (world) of the part at the newest sample of ``history``.
 
     ``grip`` (part axes, from the centre of mass) is the point of the part the hand holds
@@ -162,11 +208,18 @@ def estimate(history: tuple, *, method: str, window: int,
     ``v_grip + w x (cm - grip)``. A part turned in the hand moves its centre of mass on a
     circle about the grip, which the quadratic fits poorly (a physics audit: a gear spun
     on its bore at 10 rad/s let go 5.4 % fast); the grip point moves as the hand does.
-    At ``(0, 0, 0)``, the centre of mass's own path, as before (the same bits)."""
-    samples = _distinct(history)
+    At ``(0, 0, 0)``, the centre of mass's own path, as before (the same bits).
+
+    The fit takes the last ``window`` samples and, before them, those within ``span_ns``
+    of the newest (``physics.release_span_s``): a tracker log of unaligned devices makes
+    a frame at every device's stamp (330 a second for a headset at 90 Hz and two
+    controllers at 120 Hz), where seven frames span 18 ms, about two of the hand's own
+    samples, and the fit is their noise (an engineer's trial: a pin held still over its
+    bore let go at 0.08 m/s sideways, and it missed). At 60 Hz the span is the window's."""
+    samples = _distinct(kept(history, window, span_ns))
     if len(samples) < 2:
         return sp.ZERO3, sp.ZERO3
-    samples = samples[-2:] if method == "two_frame" else samples[-window:]
+    samples = samples[-2:] if method == "two_frame" else _spaced(samples, window, span_ns)
     t_last: int = samples[-1][0]
     # Times in seconds before the newest sample; rotation vectors relative to the newest
     # orientation, in world axes: for a constant angular velocity w they are exactly t w.
