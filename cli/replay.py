@@ -17,10 +17,6 @@ from vade_replay.recording import Recording, ensure_writable
 from vade_replay.replay import (ANALYSIS_COLUMNS, VALUE_UNITS, WHAT_IF_TOLERANCE, Tolerance,
                                 _number_and_unit, analysis_rows, apply_overrides,
                                 describe_departure, miss_line, parse_tolerance, replay)
-
-# Past these (m, rad) a tolerance is warned of: round-off is ~1e-9, another machine's
-# departures 1e-15-1e-12 (README), and a centimetre or a tenth of a radian is physics.
-LOOSE_TOLERANCE = (0.01, 0.1)
 from vade_replay.tables import FRAME_TABLES, STDOUT, FrameTables, TableError, TableFile
 
 from vade_replay.errors import VadeError
@@ -28,6 +24,10 @@ from vade_replay.errors import VadeError
 from ._common import (EXIT_DIVERGED, EXIT_OK, EXIT_UNUSABLE, Progress, beyond_tolerance_text,
                       closed_pipe, elsewhere_text, going_on_without_stdout,
                       not_standard_output, print_json, run, within_tolerance_text)
+
+# Past these (m, rad) a tolerance is warned of: round-off is ~1e-9, another machine's
+# departures 1e-15-1e-12 (README), and a centimetre or a tenth of a radian is physics.
+LOOSE_TOLERANCE = (0.01, 0.1)
 
 
 def _parser() -> argparse.ArgumentParser:

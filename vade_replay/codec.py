@@ -243,7 +243,6 @@ def recorded_frames(messages: Iterator[Any], topics: dict[int, str],
                     if exc.frame is None:  # (its own number unread: the one it should be)
                         exc.frame = expected
                     raise
-
                 if inputs.frame != expected:
                     # Frames are written numbered from 0, one a message: a gap or a repeat
                     # is an edited file's, not a divergence of the physics (a researcher's
@@ -293,7 +292,6 @@ def _misnumbered(expected: int, found: int) -> str:
     else:
         what = f"tracker frame {found} comes after frame {expected - 1}"
     return what + _EDITED
-
 
 
 def snapshot_dict(s: PartSnapshot) -> dict:

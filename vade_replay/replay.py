@@ -1104,11 +1104,6 @@ def refuse_replacing(out: str | Path, session: Session, scene: Scene) -> str | N
                 None: "what a run left there"}[holds_recording(kept)]
         raise ConfigError(f"{kept} holds {held} ({_size(kept)}); move it away to keep it, "
                           "or pass --force to write over it", file=str(out))
-    return _replacing(path, out, session, scene)
-
-
-def _replacing(path: Path, out: str | Path, session: Session, scene: Scene) -> str | None:
-    """``refuse_replacing``'s check of the file at the output itself."""
     if not path.exists() or in_place(path):
         return None
     try:
@@ -1169,6 +1164,12 @@ def _changed_fields(theirs: dict, ours: dict, *, most: int = 6) -> list[str]:
     return out[:most] + ([f"{len(out) - most} more"] if len(out) > most else [])
 
 
+def _part_figures(scene: Scene) -> dict:
+    """What a run's summary says of each part's body: its mass and centre of mass."""
+    return {"masses_kg": {p.name: p.mass_kg for p in scene.parts},
+            "centers_of_mass_m": {p.name: list(p.center_of_mass) for p in scene.parts}}
+
+
 def record(session: Session, out: str | Path, *,
            on_frame: Callable[[FrameRecord], None] | None = None,
            replace_other: bool = True,
@@ -1198,9 +1199,7 @@ def record(session: Session, out: str | Path, *,
                          warnings=session.warnings() + scene_warnings(scene, collision,
                                                                       session.doc),
                          units=session.doc.get("units", "m"),
-                         masses_kg={p.name: p.mass_kg for p in scene.parts},
-                         centers_of_mass_m={p.name: list(p.center_of_mass)
-                                            for p in scene.parts})
+                         **_part_figures(scene))
     if on_warnings is not None and summary.warnings:
         on_warnings(list(summary.warnings))
     first_time = None
@@ -1352,9 +1351,9 @@ def release_misses(scene: Scene, record: FrameRecord, first_time_ns: int) -> lis
         # Within its tolerances and on it, but gravity pulls the part off a face of it (a
         # physics audit: a two-plane corner leaning so that the part falls off the wall
         # read "released 0 mm and 0 deg off corner", saying nothing of why).
-        g = sp.quat_rotate(sp.quat_conj(base_pose.rotation), scene.physics.gravity_slide)
         lifted = mate.kind != "axis" and score <= 1.0 and not misfit and beyond <= 0.0 \
-            and onbase.normal_load(mate.kind, mate.base_dirs, None, g)[1]
+            and onbase.normal_load(mate.kind, mate.base_dirs, None, sp.quat_rotate(
+                sp.quat_conj(base_pose.rotation), scene.physics.gravity_slide))[1]
         out.append({"frame": record.frame,
                     "time_s": (record.time_ns - first_time_ns) / 1e9, "part": event.part,
                     "cause": event.cause, "nearest_constraint": mate.name,
@@ -2236,9 +2235,7 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     collision = CollisionWorld(scene)
     summary = RunSummary(session.name, parts=[p.name for p in scene.parts], overrides=applied,
                          units=session.doc.get("units", "m"),
-                         masses_kg={p.name: p.mass_kg for p in scene.parts},
-                         centers_of_mass_m={p.name: list(p.center_of_mass)
-                                            for p in scene.parts},
+                         **_part_figures(scene),
                          physics_changed=physics_changes(recording, scene.physics, applied),
                          made_elsewhere=made_elsewhere(recording),
                          warnings=_introduced(session, recording.session) if applied else [],

@@ -503,17 +503,17 @@ def _spread(doc: dict, mesh: trimesh.Trimesh, length_factor: float,
     if "density" not in doc and "mass" not in doc:
         raise SessionError("give its density, its mass or its mass_properties", file=file,
                            field=where)
-    size = float(np.max(mesh.extents)) if len(mesh.vertices) else 0.0
-    if not mesh.is_watertight and '"file"' not in json.dumps(doc["shape"]) \
-            and size < _OPEN_WHEN_SMALL_M:
-        # A shape of its own (box, tube, ...) is closed at any size a hand holds, but
-        # trimesh drops faces of one a millimetre or so across (a researcher's trial: a
-        # metre session labelled "in", a 0.05 in tube, was told to give mass_properties).
-        raise SessionError(
-            f"it is {size * 1e3:.3g} mm across, too small for its mesh to close: are the "
-            f"session's units right? (lengths are in its units, "
-            f"{_UNIT_NAMES.get(length_factor, '')})", file=file, field=f"{where}.shape")
     if not mesh.is_watertight:
+        size = float(np.max(mesh.extents)) if len(mesh.vertices) else 0.0
+        if '"file"' not in json.dumps(doc["shape"]) and size < _OPEN_WHEN_SMALL_M:
+            # A shape of its own (box, tube, ...) is closed at any size a hand holds, but
+            # trimesh drops faces of one a millimetre or so across (a researcher's trial: a
+            # metre session labelled "in", a 0.05 in tube, was told to give
+            # mass_properties).
+            raise SessionError(
+                f"it is {size * 1e3:.3g} mm across, too small for its mesh to close: are "
+                f"the session's units right? (lengths are in its units, "
+                f"{_UNIT_NAMES.get(length_factor, '')})", file=file, field=f"{where}.shape")
         raise SessionError(
             "mesh is not watertight, so its volume and inertia are undefined; give "
             "mass_properties (a CAD report or the numbers) for this part"

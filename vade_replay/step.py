@@ -180,7 +180,7 @@ def _base_sample(f: _Frame, base: Body, last: BaseSample | None,
     reads back; a device missing from a log's frame keeps its last sample, so the base
     holds there (0) and steps the gap's motion in the frame after, as simulated. Samples
     are taken a 60 Hz step apart at most as densely as the release fit takes them
-    (``velocity._spaced``: three quarters of ``release_span_s / (release_window - 1)``):
+    (``velocity.spacing_ns``: three quarters of ``release_span_s / (release_window - 1)``):
     a log of unaligned devices has a frame every 3 ms, and a difference over one was the
     tracker's noise (an engineer's trial: a bracket held still at 0.07-0.19 m/s); at 60 Hz
     or less, every frame, as before."""
@@ -190,10 +190,8 @@ def _base_sample(f: _Frame, base: Body, last: BaseSample | None,
     if last is None:
         return sample, None
     physics = f.scene.physics
-    spacing = velocity.MIN_INTERVAL_NS
-    if physics.release_span_s > 0.0 and physics.release_window > 1:
-        spacing = max(spacing, round(0.75 * physics.release_span_s * 1e9
-                                     / (physics.release_window - 1)))
+    spacing = max(float(velocity.MIN_INTERVAL_NS), velocity.spacing_ns(
+        round(physics.release_span_s * 1e9), physics.release_window))
     if t_ns - last.t_ns < spacing:
         return last, motion
     dt = (t_ns - last.t_ns) * 1e-9

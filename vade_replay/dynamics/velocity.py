@@ -172,6 +172,15 @@ def kept(history: tuple, window: int, span_ns: int) -> tuple:
     return history[first:]
 
 
+def spacing_ns(span_ns: int, window: int) -> float:
+    """How far apart (ns) the samples a fit takes are at least: three quarters of a 60 Hz
+    step for the defaults (``span_ns / (window - 1)``), so every frame at 60 Hz or less;
+    0 without a span (``_spaced``, and the base's samples, ``step._base_sample``)."""
+    if span_ns <= 0 or window < 2:
+        return 0.0
+    return 0.75 * span_ns / (window - 1)
+
+
 def _spaced(samples: list, window: int, span_ns: int) -> list:
     """At most ``window`` of ``samples`` (oldest first), the newest and, going back, each
     at least three quarters of ``span_ns / (window - 1)`` before the one kept after it:
@@ -181,9 +190,9 @@ def _spaced(samples: list, window: int, span_ns: int) -> list:
     samples, joined by straight lines) made the stop and corner checks take a hand's own
     noise between two samples for its steps (an engineer's trial: a still hand let go at
     0.08 m/s whatever the window)."""
-    if span_ns <= 0 or window < 2:
+    gap = spacing_ns(span_ns, window)
+    if gap <= 0.0:
         return samples[-window:]
-    gap = 0.75 * span_ns / (window - 1)
     out = [samples[-1]]
     newest: tuple = samples[-1]
     t_kept: int = newest[0]
