@@ -575,15 +575,29 @@ class CollisionWorld:
         leaves the base, which its flight passes while leaving (``Flight.grace``). Whole
         surfaces, so that a finely meshed face does not hold the part by the triangle next
         to the one it touched."""
+        return self.surface_gaps(part, base_from_part, within)[0]
+
+    def surface_gaps(self, part: str, base_from_part: sp.Pose, within: float
+                     ) -> tuple[tuple[int, ...], tuple[float, ...]]:
+        """``surfaces_within``, and each one's distance from the posed part (what a flight
+        leaving the base passes them down to, ``Flight.grace_within``)."""
         if self._base is None:
-            return ()
+            return (), ()
         obj = fcl.CollisionObject(self._model(part), _transform(base_from_part))
         near = []
         for _, index in self._nearest_surfaces(part, base_from_part, (), within):
             self.stats["fcl_distance_queries"] += 1
-            if _distance(obj, self._surface_object(index)) <= within:  # type: ignore[arg-type]
-                near.append(index)
-        return tuple(sorted(near))
+            d = _distance(obj, self._surface_object(index))  # type: ignore[arg-type]
+            if d <= within:
+                near.append((index, d))
+        near.sort()
+        return tuple(i for i, _ in near), tuple(d for _, d in near)
+
+    def surface_distance(self, part: str, base_from_part: sp.Pose, index: int) -> float:
+        """Distance from the posed part to one of the base's surfaces (``base_surfaces``)."""
+        self.stats["fcl_distance_queries"] += 1
+        return _distance(fcl.CollisionObject(self._model(part), _transform(base_from_part)),
+                         self._surface_object(index))  # type: ignore[arg-type]
 
     def _graced_nearest(self, part: str, base_from_part: sp.Pose, grace: tuple[int, ...],
                         nearest_points: bool, mate: tuple[str, int] | None = None,
@@ -633,13 +647,21 @@ class CollisionWorld:
         normal of the base triangle nearest the part, not the direction from an edge or a
         corner (a part leaving the base along a face meets the edge of another surface
         flush with it, a seam in a wall, at directions between the two)."""
+        normal, on_face, _ = self.base_contact_at(part, base_from_part, grace)
+        return normal, on_face
+
+    def base_contact_at(self, part: str, base_from_part: sp.Pose,
+                        grace: tuple[int, ...] | None = None
+                        ) -> tuple[sp.Vec3 | None, bool, sp.Vec3]:
+        """``base_contact``, and the part's point nearest the base (base axes; where an
+        impact acts, ``step._graze``); the origin with no normal."""
         if self._base is None:
-            return None, False
+            return None, False, sp.ZERO3
         faces = self._base_faces
         if grace:
             d, result, which = self._graced_nearest(part, base_from_part, grace, True)
             if result is None:
-                return None, False
+                return None, False, sp.ZERO3
             faces = faces[self._surfaces()[which].faces]
         else:
             self.stats["fcl_distance_queries"] += 1
@@ -649,12 +671,12 @@ class CollisionWorld:
                              self._whole(), fcl.DistanceRequest(enable_nearest_points=True),
                              result)
         if not d > 0.0:
-            return None, False
+            return None, False, sp.ZERO3
         on_part, on_base = result.nearest_points
         gap = sp.sub((float(on_part[0]), float(on_part[1]), float(on_part[2])),
                      (float(on_base[0]), float(on_base[1]), float(on_base[2])))
         if not sp.norm(gap) > 0.0:
-            return None, False
+            return None, False, sp.ZERO3
         normal = sp.normalize(gap)
         on_face = False
         if 0 <= result.b2 < len(faces):
@@ -664,7 +686,7 @@ class CollisionWorld:
             length = sp.norm(n)
             on_face = length > 0.0 and abs(sp.dot(normal, (n[0] / length, n[1] / length,
                                                            n[2] / length))) >= _FACE_COS
-        return normal, on_face
+        return normal, on_face, (float(on_part[0]), float(on_part[1]), float(on_part[2]))
 
     def environment_near(self, center: sp.Vec3, radius: float) -> tuple[int, ...]:
         """Indices of environment objects whose world box a sphere can touch."""

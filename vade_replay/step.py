@@ -564,7 +564,7 @@ def _release(f: _Frame, index: int, hand: str) -> None:
     if f.base_pose is not None and _base_path(f, cm, body.radius_about_cm) is not None:
         base_from_part = f.base_pose.inverse().compose(part.pose)
         if f.collision.distance_to_base(part.name, base_from_part) <= physics.contact_tolerance:
-            normal = f.collision.base_contact_normal(part.name, base_from_part)
+            normal, _, point = f.collision.base_contact_at(part.name, base_from_part)
             up = _support(f, normal)
             if up is None and normal is not None:
                 up = _support_elsewhere(f, part.name, base_from_part, ())
@@ -575,13 +575,14 @@ def _release(f: _Frame, index: int, hand: str) -> None:
                 return
             # Touching a face that does not hold it up (underneath, a wall): it flies, not
             # into the base, which it may graze until they separate.
-            v = _without_push_into_base(f, normal, v)
+            v, w = _graze(body, cast(sp.Pose, f.base_pose), part.pose, normal, point, v, w)
             f.events.append(PartReleased(frame, part.name, flies.value, hand, v, w))
+            grace, within = _grace(f, part.name, base_from_part)
             flight = free.start(t_ns=f.t_ns, cm=cm, velocity=v, omega_world=w,
                                 world_from_part=part.pose,
                                 part_from_principal=body.part_from_principal,
                                 principal_moments=body.principal_moments, base_clear=False,
-                                grace=_grace(f, part.name, base_from_part))
+                                grace=grace, grace_within=within)
             f.change_mode(index, PartState(part.name, INSPACE, part.pose, v, w, flight), flies)
             return
     near = f.collision.environment_near(cm, body.radius_about_cm + physics.contact_tolerance)
@@ -622,15 +623,28 @@ def _flight_pose(f: _Frame, body: Body, start: free.Flight,
     return flight, cm, v, pose
 
 
-def _grace(f: _Frame, part: str, base_from_part: sp.Pose) -> tuple[int, ...] | None:
+# A surface a part leaves at under this (a fraction of the contact tolerance) it touches:
+# it passes it (``_grace``), there being no telling touching from overlapping at distance 0.
+_TOUCHING: Final = 1e-3
+
+
+def _grace(f: _Frame, part: str, base_from_part: sp.Pose
+           ) -> tuple[tuple[int, ...] | None, tuple[float, ...]]:
     """What of the base a part leaving it at ``base_from_part`` passes until they have
     separated once (``Flight.grace``): the surfaces it touches (within twice the contact
-    tolerance; ``CollisionWorld.surfaces_within``), or None for the whole base
-    (``physics.flight_grace`` whole_base)."""
+    tolerance; ``CollisionWorld.surface_gaps``), or None for the whole base
+    (``physics.flight_grace`` whole_base); and how near each may come before it stops the
+    part (``Flight.grace_within``): half the gap it leaves at, so that a part moving along
+    a surface passes it and one moving into it meets it (an engineer's trial: a pin that
+    slid up out of a bore with 0.1 mm of clearance moved sideways through the bore's wall
+    into the boss); nothing of one it leaves at distance 0 (a nominal fit, a face it
+    rested on), which it passes as before."""
     physics = f.scene.physics
     if physics.flight_grace == "whole_base":
-        return None
-    return f.collision.surfaces_within(part, base_from_part, 2.0 * physics.contact_tolerance)
+        return None, ()
+    tol = physics.contact_tolerance
+    grace, gaps = f.collision.surface_gaps(part, base_from_part, 2.0 * tol)
+    return grace, tuple(0.5 * d if d >= _TOUCHING * tol else 0.0 for d in gaps)
 
 
 def _finite(values: tuple[float, ...]) -> bool:
@@ -667,6 +681,7 @@ def _fly(f: _Frame, index: int) -> None:
     near = f.collision.environment_near(center, reach)
     base = _base_path(f, center, reach)
     grace = None if flight.base_clear else flight.grace
+    within = () if flight.base_clear else flight.grace_within
     if base is not None and not flight.base_clear:
         # Just off the base: what it touched as it left (the whole base, with flight_grace
         # whole_base) is no obstacle until the part has separated from it.
@@ -680,12 +695,16 @@ def _fly(f: _Frame, index: int) -> None:
     if not near and base is None:
         f.parts[index] = moved
         return
-    contact = _time_of_contact(f, body, start, near, base, t_a, t_b, part.pose, pose_b, grace)
+    contact = _time_of_contact(f, body, start, near, base, t_a, t_b, part.pose, pose_b, grace,
+                               within)
     if contact is None:
         f.parts[index] = moved
         return
-    t_c, pose_c, other = contact
+    t_c, pose_c, other, surface = contact
     if other is None:
+        # Of what it passes, not the surface it met (``Flight.grace_within``).
+        if grace is not None and surface >= 0:
+            grace = tuple(s for s in grace if s != surface)
         f.events.append(ContactMade(f.inputs.frame, part.name, Cause.HIT_BASE.value,
                                     cast(Body, f.scene.base).name, t_c))
         base_at_contact = base.at_time(t_c)  # type: ignore[union-attr]
@@ -697,12 +716,15 @@ def _fly(f: _Frame, index: int) -> None:
             if _onto_base(f, index, base_from_part, None, flown[2], free.omega_world(
                     flown[0], model=physics.free_rotation, moments=body.principal_moments)):
                 return  # came onto a constraint of its own, or its final pose
-        normal, on_face = f.collision.base_contact(part.name, base_from_part, grace)
+        normal, on_face, point = f.collision.base_contact_at(part.name, base_from_part, grace)
         # Leaving the base, it lands only on a face: the edge of another surface flush
         # with the one it leaves along (a seam) gives directions that would hold it up.
         up = _support(f, normal) if on_face or grace is None else None
         if up is None and normal is not None:
             up = _support_elsewhere(f, part.name, base_from_part, grace or ())
+        again = up is None and _met_again(f, body, start, t_a, part.pose, pose_c)
+        if again:
+            up = _wedged(f, start, normal)
         if up is not None:
             _rest_on_base(f, index, base_from_part, up, Cause.LANDED_ON_BASE)
             return
@@ -710,18 +732,69 @@ def _fly(f: _Frame, index: int) -> None:
         # the base and flies on from the contact, grazing the base until they separate.
         contact_flight, cm_c, v_c, _ = flown if flown is not None \
             else _flight_pose(f, body, start, t_c)
-        v_c = _without_push_into_base(f, normal, v_c)
         w_c = free.omega_world(contact_flight, model=physics.free_rotation,
                                moments=body.principal_moments)
+        if again:
+            w_c = _zero3()  # held against the base: it slides, no longer turning
+        v_c, w_c = _graze(body, base_at_contact, pose_c, normal, point, v_c, w_c)
+        grace, within = _grace(f, part.name, base_from_part)
         flight = free.start(t_ns=t_c, cm=cm_c, velocity=v_c, omega_world=w_c,
                             world_from_part=pose_c, part_from_principal=body.part_from_principal,
                             principal_moments=body.principal_moments, base_clear=False,
-                            grace=_grace(f, part.name, base_from_part))
+                            grace=grace, grace_within=within,
+                            grazes=start.grazes + 1 if again else 1,
+                            grazed_normal=normal if normal is not None else sp.ZERO3)
         f.parts[index] = PartState(part.name, INSPACE, pose_c, v_c, w_c, flight)
         return
     f.events.append(ContactMade(f.inputs.frame, part.name, Cause.HIT_ENVIRONMENT.value,
                                 f.collision.environment_name(other), t_c))
     f.change_mode(index, PartState(part.name, STATIC, pose_c), Cause.HIT_ENVIRONMENT)
+
+
+# Met again so many times in a row, a part rests where it is (``_wedged``).
+_WEDGED_AFTER: Final = 50
+
+
+def _met_again(f: _Frame, body: Body, start: free.Flight, t_a: int, pose_a: sp.Pose,
+               pose_c: sp.Pose) -> bool:
+    """Whether a part has met a base face that cannot hold it again before any point of it
+    moved the contact tolerance since it last met one (a graze at ``t_a``): it is held
+    against the base, and stops turning (each graze stops only the motion into the face it
+    meets, there being no contact force in flight: a pin turned in its bore was stopped by
+    one side and the other at ever shorter intervals, turning on between them)."""
+    if start.grazes == 0 or start.base_clear or start.t0_ns != t_a:
+        return False
+    angle = sp.quat_angle_between(pose_a.rotation, pose_c.rotation)
+    moved = sp.norm(sp.sub(pose_c.apply(body.center_of_mass), pose_a.apply(body.center_of_mass)))
+    return moved + angle * body.radius_about_cm <= f.scene.physics.contact_tolerance
+
+
+def _wedged(f: _Frame, start: free.Flight, normal: sp.Vec3 | None) -> sp.Vec3 | None:
+    """For a part met again (``_met_again``) at a face of normal ``normal`` (base axes),
+    soon after one of normal ``start.grazed_normal``: the way up (base axes) if the two
+    faces hold it up together, the way a face that holds a part up does alone (``_support``),
+    else None (it slides on between them). They hold it if straight up is a sum of the two
+    normals with no negative part, to within 0.1 (6 degrees): a pin across a bore's mouth,
+    its end against one side and its flank on the rim, is wedged; a pin against two
+    facets of its bore, both upright, falls on. Met again ``_WEDGED_AFTER`` times in a row,
+    a part rests where it is whatever the faces (no contact force in flight moves it)."""
+    up = _support(f, None)
+    if up is None:
+        return None  # nothing presses it onto anything
+    if start.grazes >= _WEDGED_AFTER:
+        return up
+    if normal is None:
+        return None  # overlapping: no face to tell
+    n1, n2 = start.grazed_normal, normal
+    c, p1, p2 = sp.dot(n1, n2), sp.dot(n1, up), sp.dot(n2, up)
+    best = min(sp.norm(sp.sub(up, sp.scale(n1, max(0.0, p1)))),
+               sp.norm(sp.sub(up, sp.scale(n2, max(0.0, p2)))))
+    det = 1.0 - c * c
+    if det > 1e-12:
+        a, b = (p1 - c * p2) / det, (p2 - c * p1) / det
+        if a >= 0.0 and b >= 0.0:
+            best = min(best, sp.norm(sp.sub(up, sp.add(sp.scale(n1, a), sp.scale(n2, b)))))
+    return up if best <= 0.1 else None
 
 
 def _support_elsewhere(f: _Frame, part: str, base_from_part: sp.Pose,
@@ -759,13 +832,36 @@ def _support(f: _Frame, normal: sp.Vec3 | None) -> sp.Vec3 | None:
     return normal if sp.dot(up, normal) > _MIN_SUPPORT_COS else None
 
 
-def _without_push_into_base(f: _Frame, normal: sp.Vec3 | None, v: sp.Vec3) -> sp.Vec3:
-    """The velocity less its component into the touched base face (normal in base axes)."""
+def _graze(body: Body, base: sp.Pose, pose: sp.Pose, normal: sp.Vec3 | None,
+           point: sp.Vec3, v: sp.Vec3, w: sp.Vec3) -> tuple[sp.Vec3, sp.Vec3]:
+    """The velocity and angular velocity (world) of a part at ``pose`` that meets a base
+    face it slides along (normal and the part's touching point in the axes of the base,
+    posed at ``base``): the velocity loses its component into the face (as before), and
+    the turning that still carries the touching point into the face is taken out by the
+    least turning impulse that does (about ``r x n``, in the inertia's metric, so the
+    energy only falls). A part turned into a wall kept turning into it. Not a full impact
+    at the point, which would set a part met flat on a face turning about the corner fcl
+    names as nearest."""
     if normal is None:
-        return v
-    n = sp.quat_rotate(cast(sp.Pose, f.base_pose).rotation, normal)
+        return v, w
+    n = sp.quat_rotate(base.rotation, normal)
     into = sp.dot(v, n)
-    return sp.sub(v, sp.scale(n, into)) if into < 0.0 else v
+    if into < 0.0:
+        v = sp.sub(v, sp.scale(n, into))
+    r = sp.sub(base.apply(point), pose.apply(body.center_of_mass))
+    arm = sp.cross(r, n)
+    turning = sp.dot(w, arm)
+    if not turning < 0.0:
+        return v, w
+    # In principal axes the inverse inertia is diagonal.
+    q = sp.quat_mul(pose.rotation, body.part_from_principal)
+    a = sp.quat_rotate(sp.quat_conj(q), arm)
+    moments = body.principal_moments
+    turn = (a[0] / moments[0], a[1] / moments[1], a[2] / moments[2])
+    reach = sp.dot(a, turn)
+    if not reach > 0.0:
+        return v, w
+    return v, sp.sub(w, sp.quat_rotate(q, sp.scale(turn, turning / reach)))
 
 
 def _rest_on_base(f: _Frame, index: int, base_from_part: sp.Pose, up: sp.Vec3,
@@ -824,12 +920,15 @@ def _base_path(f: _Frame, center: sp.Vec3, reach: float) -> _BasePath | None:
 
 def _time_of_contact(f: _Frame, body: Body, start: free.Flight, near: tuple[int, ...],
                      base: _BasePath | None, t_a: int, t_b: int, pose_a: sp.Pose,
-                     pose_b: sp.Pose, grace: tuple[int, ...] | None = None
-                     ) -> tuple[int, sp.Pose, int | None] | None:
+                     pose_b: sp.Pose, grace: tuple[int, ...] | None = None,
+                     within: tuple[float, ...] = ()
+                     ) -> tuple[int, sp.Pose, int | None, int] | None:
     """First time in [t_a, t_b] at which the part comes within the contact tolerance of an
-    environment object or of the (moving) base part: ``(time, pose, index)``, with index
-    ``None`` for the base, or ``None`` when there is no contact. With ``grace`` the base
-    is taken without those faces (a part that has just left it: ``Flight.grace``).
+    environment object or of the (moving) base part: ``(time, pose, index, surface)``, with
+    index ``None`` for the base, or ``None`` when there is no contact. With ``grace`` the
+    base is taken without those surfaces (a part that has just left it: ``Flight.grace``),
+    except that each is met within its ``within`` (``Flight.grace_within``) where that is
+    above 0; ``surface`` is the one met so (-1 for any other obstacle).
 
     Conservative advancement: at distance d no point of the part can close the gap in less
     than d / (bound on its speed relative to the obstacle), so stepping by that never passes
@@ -844,55 +943,80 @@ def _time_of_contact(f: _Frame, body: Body, start: free.Flight, near: tuple[int,
         omega_max = sp.norm(start.omega_world)
     else:
         omega_max = free.max_angular_speed(start.momentum_principal, body.principal_moments)
+    met = tuple((s, d) for s, d in zip(grace or (), within) if d > 0.0) \
+        if base is not None else ()
 
-    def distance(t: int, pose: sp.Pose) -> tuple[float, int | None]:
+    def probe(t: int, pose: sp.Pose) -> tuple[float, float, int | None, int]:
+        """(room, ahead, index, surface): the least of each obstacle's distance less where
+        it is met (<= 0 where one is met) and which that is; and how far the part may
+        advance before it could pass half way in from where any is met."""
+        d: float
+        which: int | None
         d, which = (f.collision.distance_to_environment(body.name, pose, near) if near
                     else (float("inf"), -1))
+        base_from_part = pose
         if base is not None:
-            base_pose = base.at_time(t)
-            d_base = f.collision.distance_to_base(body.name, base_pose.inverse().compose(pose),
-                                                  grace)
+            base_from_part = base.at_time(t).inverse().compose(pose)
+            d_base = f.collision.distance_to_base(body.name, base_from_part, grace)
             if d_base < d:
-                return d_base, None
-        return d, which
+                d, which = d_base, None
+        room, ahead, hit, surface = d - tol, d - 0.5 * tol, which, -1
+        for s, d_s in met:
+            gap = f.collision.surface_distance(body.name, base_from_part, s) - d_s
+            if gap < room:
+                room, hit, surface = gap, None, s
+            ahead = min(ahead, gap + 0.5 * d_s)
+        return room, ahead, hit, surface
 
     base_speed = 0.0
     if base is not None:
         # Every point of the base is within base_radius of its origin, which moves at
         # base.speed while the base turns at base.omega (linear and slerp interpolation).
         base_speed = base.speed + base.omega * f.collision.base_radius
-    t, pose = t_a, pose_a
+    def first_within(lo: int, hi: int, hit: tuple[int, sp.Pose, int | None, int]
+                     ) -> tuple[int, sp.Pose, int | None, int]:
+        """Bisect [lo, hi] (clear at lo, ``hit`` at hi) for where the part came within
+        reach of what it met, so that it stops at the surface, not inside it."""
+        for _ in range(60):
+            if hi - lo <= 1:
+                break
+            mid = (lo + hi) // 2
+            pose_mid = _flight_pose(f, body, start, mid)[3]
+            room_mid, _, which_mid, surface_mid = probe(mid, pose_mid)
+            if room_mid <= 0.0:
+                hi, hit = mid, (mid, pose_mid, which_mid, surface_mid)
+            else:
+                lo = mid
+        return hit
+
+    # A step passes at least half the tolerance: a part moving along a surface it left
+    # near (``met``) would otherwise take steps of its tiny distance. Where such a step
+    # meets something, bisect back to where it did.
+    least = 0.5 * tol
+    t, pose, t_last, long_step = t_a, pose_a, t_a, False
     for _ in range(_CA_MAX_ITERATIONS):
-        d, which = distance(t, pose)
-        if d <= tol:
-            return t, pose, which
+        room, ahead, which, surface = probe(t, pose)
+        if room <= 0.0:
+            if long_step:
+                return first_within(t_last, t, (t, pose, which, surface))
+            return t, pose, which, surface
         _, v = free.cm_at(start, t, physics.gravity_free)
         speed = sp.norm(v) + g * (t_b - t) * 1e-9 + omega_max * body.radius_about_cm \
             + base_speed
         if speed <= 0.0:
             return None
-        t_next = t + max(1, int((d - 0.5 * tol) / speed * 1e9))
+        long_step = ahead < least
+        t_next = t + max(1, int((least if long_step else ahead) / speed * 1e9))
         if t_next >= t_b:
             break
-        t = t_next
+        t_last, t = t, t_next
         pose = _flight_pose(f, body, start, t)[3]
-    d_b, which_b = distance(t_b, pose_b)
-    if d_b > tol:
+    room_b, _, which_b, surface_b = probe(t_b, pose_b)
+    if room_b > 0.0:
         return None
     # Out of budget and touching at the frame's end: bisect for where it came within the
     # tolerance, so the part stops at the surface, not inside it.
-    lo, hi, hit = t, t_b, (t_b, pose_b, which_b)
-    for _ in range(60):
-        if hi - lo <= 1:
-            break
-        mid = (lo + hi) // 2
-        pose_mid = _flight_pose(f, body, start, mid)[3]
-        d_mid, which_mid = distance(mid, pose_mid)
-        if d_mid <= tol:
-            hi, hit = mid, (mid, pose_mid, which_mid)
-        else:
-            lo = mid
-    return hit
+    return first_within(t, t_b, (t_b, pose_b, which_b, surface_b))
 
 
 # --- constrained motion on the base (paper 5.2, 5.3, 6) -----------------------------------
@@ -1166,11 +1290,12 @@ def _leave(f: _Frame, index: int, cause: Cause, rel: sp.Pose, v_rel: sp.Vec3,
     v = sp.add(sp.quat_rotate(q, v_rel), v_base)
     w = sp.add(sp.quat_rotate(q, w_rel), w_base)
     t_ns = f.t_ns if at >= 1.0 else f.t_prev_ns + int(at * (f.t_ns - f.t_prev_ns))
+    grace, within = _grace(f, part.name, rel)
     flight = free.start(t_ns=t_ns, cm=pose.apply(body.center_of_mass), velocity=v,
                         omega_world=w, world_from_part=pose,
                         part_from_principal=body.part_from_principal,
                         principal_moments=body.principal_moments, base_clear=False,
-                        grace=_grace(f, part.name, rel))
+                        grace=grace, grace_within=within)
     f.change_mode(index, PartState(part.name, INSPACE, pose, v, w, flight), cause)
 
 

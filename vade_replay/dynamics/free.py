@@ -55,12 +55,22 @@ class Flight:
     # (``physics.flight_grace`` "touched"); None: the whole base ("whole_base", as before
     # 2026-11-23).
     grace: tuple[int, ...] | None
+    # Per surface ``grace`` lists, how near the part may come before it is a contact: half
+    # the gap it left at (0 for one it touched, at distance 0, which it passes).
+    grace_within: tuple[float, ...]
+    # Whether it began where the part met a base face that could not hold it (a graze):
+    # how many times in a row it met one so, each soon after the last (``step._met_again``;
+    # 0: it did not), and the normal of the last (base axes).
+    grazes: int
+    grazed_normal: sp.Vec3
 
     # Not frozen, and its own __init__: see vade_replay/frames.py (a value all the same).
     def __init__(self, t0_ns: int, cm0: sp.Vec3, v0: sp.Vec3, t_ns: int,
                  world_from_principal: sp.Quat, momentum_principal: sp.Vec3,
                  omega_world: sp.Vec3, base_clear: bool = True,
-                 grace: tuple[int, ...] | None = None) -> None:
+                 grace: tuple[int, ...] | None = None,
+                 grace_within: tuple[float, ...] = (), grazes: int = 0,
+                 grazed_normal: sp.Vec3 = sp.ZERO3) -> None:
         self.t0_ns = t0_ns
         self.cm0 = cm0
         self.v0 = v0
@@ -70,12 +80,17 @@ class Flight:
         self.omega_world = omega_world
         self.base_clear = base_clear
         self.grace = grace
+        self.grace_within = grace_within
+        self.grazes = grazes
+        self.grazed_normal = grazed_normal
 
 
 def start(*, t_ns: int, cm: sp.Vec3, velocity: sp.Vec3, omega_world: sp.Vec3,
           world_from_part: sp.Pose, part_from_principal: sp.Quat,
           principal_moments: sp.Vec3, base_clear: bool = True,
-          grace: tuple[int, ...] | None = None) -> Flight:
+          grace: tuple[int, ...] | None = None,
+          grace_within: tuple[float, ...] = (), grazes: int = 0,
+          grazed_normal: sp.Vec3 = sp.ZERO3) -> Flight:
     """Flight state from a release: CM position and velocity, angular velocity, part pose."""
     world_from_principal = sp.quat_normalize(sp.quat_mul(world_from_part.rotation,
                                                          part_from_principal))
@@ -84,7 +99,7 @@ def start(*, t_ns: int, cm: sp.Vec3, velocity: sp.Vec3, omega_world: sp.Vec3,
                 principal_moments[1] * omega_principal[1],
                 principal_moments[2] * omega_principal[2])
     return Flight(t_ns, cm, velocity, t_ns, world_from_principal, momentum, omega_world,
-                  base_clear, grace)
+                  base_clear, grace, grace_within, grazes, grazed_normal)
 
 
 def cm_at(flight: Flight, t_ns: int, gravity: sp.Vec3) -> tuple[sp.Vec3, sp.Vec3]:
@@ -355,7 +370,8 @@ def advance(flight: Flight, t_ns: int, *, model: str, moments: sp.Vec3, order: i
         q = sp.quat_normalize(sp.quat_mul(sp.quat_from_rotvec(sp.scale(flight.omega_world, dt)),
                                           flight.world_from_principal))
         return Flight(flight.t0_ns, flight.cm0, flight.v0, t_ns, q, flight.momentum_principal,
-                      flight.omega_world, flight.base_clear, flight.grace)
+                      flight.omega_world, flight.base_clear, flight.grace,
+                      flight.grace_within, flight.grazes, flight.grazed_normal)
     if model == "rk4":
         q, m = rotate_rk4(flight.world_from_principal, flight.momentum_principal, dt, moments,
                           max_step_s=max_step_s)
@@ -372,7 +388,8 @@ def advance(flight: Flight, t_ns: int, *, model: str, moments: sp.Vec3, order: i
         q, m = rotate_momentum(flight.world_from_principal, flight.momentum_principal, dt,
                                moments, order=order, max_step_s=max_step_s)
     return Flight(flight.t0_ns, flight.cm0, flight.v0, t_ns, q, m, flight.omega_world,
-                  flight.base_clear, flight.grace)
+                  flight.base_clear, flight.grace, flight.grace_within, flight.grazes,
+                  flight.grazed_normal)
 
 
 def max_angular_speed(momentum: sp.Vec3, moments: sp.Vec3) -> float:
