@@ -280,11 +280,16 @@ def _check_output_paths(args) -> None:
             _refuse_replacing_other(given, option)
 
 
-# A table or a review never replaces, without --force, a recording or a session (JSON) by a
-# slip: a researcher's trial found --csv over a participant's recording replacing it. Any
-# other file (an older table, one re-saved by a spreadsheet, another tool's CSV) is
-# replaced, as an output is; a review's place takes a review (rerun's magic) or nothing.
-_OUTPUT_STARTS = {"--rerun": b"RRF"}
+# A table or a review never replaces, without --force, what vade-replay did not write: a
+# researcher's trial found --csv over a participant's recording replacing it, and a
+# newcomer's --poses over the session's own tracker log (a CSV) and --events over a mesh.
+# A table's place takes an empty file or a table (its header's first column
+# ``recording``, as every table vade-replay writes begins, also after a spreadsheet saved
+# it again: a byte-order mark and quotes are let through); a review's, a review (rerun's
+# magic) or an empty file.
+_OUTPUT_STARTS = {"--rerun": (b"RRF",)}
+_TABLE_STARTS = (b"recording,", b'"recording",', b"recording;", b'"recording";',
+                 b"recording\t", b"recording\n", b"recording\r")
 
 
 def _refuse_replacing_other(path: str, option: str) -> None:
@@ -293,17 +298,17 @@ def _refuse_replacing_other(path: str, option: str) -> None:
         if not where.is_file() or where.stat().st_size == 0:
             return
         with open(where, "rb") as stream:
-            head = stream.read(16)
+            head = stream.read(64)
     except OSError:
         return  # unreadable: writing it says why (ensure_writable)
-    recording = head.startswith(b"\x89MCAP")
-    session = head.lstrip(b"\xef\xbb\xbf \t\r\n").startswith((b"{", b"["))
-    start = _OUTPUT_STARTS.get(option)
-    if not (recording or session) and (start is None or head.startswith(start)):
+    text = head[3:] if head.startswith(b"\xef\xbb\xbf") else head
+    if text.startswith(_OUTPUT_STARTS.get(option, _TABLE_STARTS)):
         return
+    recording = head.startswith(b"\x89MCAP")
+    session = text.lstrip(b" \t\r\n").startswith((b"{", b"["))
     what = "a recording" if recording else "a JSON file (a session?)" if session \
         else "other data"
-    kind = "rerun review" if option == "--rerun" else "table"
+    kind = "rerun review" if option == "--rerun" else "table vade-replay wrote"
     raise ConfigError(f"{path} holds {what}, not a {kind}; pass --force to replace it, or "
                       "choose another file", field=option)
 

@@ -889,6 +889,31 @@ def test_tables_and_reviews_do_not_replace_what_vade_replay_did_not_write(tmp_pa
     assert kept.read_text().startswith("recording,")
 
 
+def test_a_table_does_not_replace_a_tracker_log_a_mesh_or_a_picture(tmp_path):
+    """A newcomer's trial: ``--poses log.csv`` replaced the session's own tracker log (a CSV,
+    but not a table vade-replay wrote), ``--events peg.stl`` a mesh the session uses and
+    ``--csv pic.png`` a picture, exit 0. A table replaces only an empty file or a table
+    (its header's first column ``recording``, also re-saved by a spreadsheet with a
+    byte-order mark and quotes); the rest is refused, exit 2, the file untouched."""
+    golden = str(RECORDINGS / "throw_and_catch.mcap")
+    log = tmp_path / "log.csv"
+    log.write_text("time,device,x,y,z,q0,q1,q2,q3,grip\n0.0,right_hand,0,0,1,1,0,0,0,0\n")
+    mesh = tmp_path / "peg.stl"
+    mesh.write_bytes(b"solid peg\nendsolid peg\n")
+    picture = tmp_path / "pic.png"
+    picture.write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(32))
+    for option, path in (("--poses", log), ("--events", mesh), ("--csv", picture)):
+        before = path.read_bytes()
+        _assert_clean_error(run_cli("vade-replay", golden, option, str(path)),
+                            f"{option}: {path} holds other data, not a table vade-replay "
+                            "wrote", "--force")
+        assert path.read_bytes() == before
+    resaved = tmp_path / "study.csv"
+    resaved.write_bytes(b'\xef\xbb\xbf"recording";"session";"match"\r\n"a.mcap";"s";"True"\r\n')
+    assert run_cli("vade-replay", golden, "--csv", str(resaved)).returncode == 0
+    assert resaved.read_text().startswith("recording,session,")
+
+
 def test_a_bad_physics_set_writes_nothing_and_says_so_once(tmp_path):
     """A researcher's trial: a typo in --set over a study replaced a good study table with
     a row of errors per recording, and printed its message once a recording."""
