@@ -268,3 +268,25 @@ def test_the_outcome_lines_leave_out_empty_hands_and_parts_placed_from_the_start
     analysis["parts"]["sleeve"]["refused_grabs"] = 1
     assert _outcome_lines(analysis, doc)[0] == \
         "refused grabs: too_heavy_for_one_hand 1 (sleeve)"
+
+
+@pytest.mark.parametrize("key, hint", [
+    ("parts.peg.mas=1", "unknown field 'mas' of part 'peg' (a typo of 'mass'?)"),
+    ("parts.peg.final_tolerance.distanc=1",
+     "unknown field 'final_tolerance.distanc' of part 'peg' "
+     "(a typo of 'final_tolerance.distance'?)"),
+    ("parts.peg.constraints.pin.friction.static=0.5",
+     "part 'peg' has no assembly (no constraints, no final pose)")])
+def test_a_typo_in_a_part_s_field_is_named_as_one(key, hint):
+    """A newcomer's trial: ``--set parts.peg.mas=1`` on a part with no constraints was told
+    "part 'peg' has no assembly", though ``parts.peg.mass`` is any part's. An unknown
+    field is said to be one, with the field it is nearest; a constraint's field on a part
+    with none still says that."""
+    result = run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"), "--set", key)
+    assert result.returncode == 2 and result.stdout == ""
+    assert result.stderr == f"error: --set {key.split('=')[0]}: {hint}" + (
+        "" if "no assembly" in hint else "; a part's field is parts.PART.constraints.NAME."
+        "FIELD=VALUE (FIELD: tolerance.distance, tolerance.angle_deg, friction.static, "
+        "friction.dynamic, friction.rotational, friction.holding_torque) or "
+        "parts.PART.FIELD=VALUE (FIELD: mass, density, final_tolerance.distance, "
+        "final_tolerance.angle_deg)") + "\n"

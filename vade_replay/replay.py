@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import difflib
 import itertools
 import json
 import math
@@ -767,6 +768,16 @@ def _constraint_target(doc: dict, key: str) -> dict:
             raise ConfigError(f"part {name!r} has its mass from mass_properties, not a "
                               f"density; change parts.{name}.mass (kg)", field=f"--set {key}")
         return part
+    leaf = next((f for f in _CONSTRAINT_FIELDS if field.endswith("." + f)), None)
+    if field not in _FINAL_FIELDS and (not field.startswith("constraints.") or leaf is None):
+        # (A newcomer's trial: parts.peg.mas=1 on a part with no assembly was told the part
+        # has none, though parts.peg.mass is any part's.)
+        fields = ["mass", "density", *_FINAL_FIELDS, *(f"constraints.NAME.{f}"
+                                                       for f in _CONSTRAINT_FIELDS)]
+        close = difflib.get_close_matches(field, fields, n=1, cutoff=0.6)
+        raise ConfigError(f"unknown field {field!r} of part {name!r}"
+                          + (f" (a typo of {close[0]!r}?)" if close else "") + f"; {usage}",
+                          field=f"--set {key}")
     assembly = part.get("assembly")
     if assembly is None:
         raise ConfigError(f"part {name!r} has no assembly (no constraints, no final pose)",
@@ -775,9 +786,7 @@ def _constraint_target(doc: dict, key: str) -> dict:
         if "final_pose" not in assembly:
             raise ConfigError(f"part {name!r} has no final pose", field=f"--set {key}")
         return assembly.setdefault(field.split(".")[0], {})
-    leaf = next((f for f in _CONSTRAINT_FIELDS if field.endswith("." + f)), None)
-    if not field.startswith("constraints.") or leaf is None:
-        raise ConfigError(usage, field=f"--set {key}")
+    assert leaf is not None
     wanted = field[len("constraints."):-len(leaf) - 1]
     constraints = assembly.get("constraints", [])
     names = [c.get("name", f"{c.get('type')}{i}") for i, c in enumerate(constraints)]
