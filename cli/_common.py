@@ -9,6 +9,7 @@ import sys
 from contextlib import contextmanager
 from typing import Callable
 
+from vade_replay import native
 from vade_replay.errors import ConfigError, VadeError
 
 EXIT_OK, EXIT_DIVERGED, EXIT_UNUSABLE = 0, 1, 2
@@ -72,6 +73,9 @@ def run(main: Callable[[list[str] | None], int], argv: list[str] | None = None) 
     global UNDONE
     StdoutOrNothing.gone = False
     UNDONE = ""  # (a command sets its own: a run in the same process must not inherit it)
+    note = native.uncompiled_note()
+    if note is not None:
+        print(note, file=sys.stderr)
     try:
         code = main(argv)
         sys.stdout.flush()  # inside: what is still buffered may meet a reader gone

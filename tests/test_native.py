@@ -230,3 +230,28 @@ def test_a_stale_build_says_why_it_runs_the_sources(monkeypatch):
     monkeypatch.delenv(native.PURE_ENV)
     monkeypatch.setattr(native, "_STALE", [])
     assert native.describe() == "pure Python"
+
+
+def test_an_install_that_compiled_nothing_says_so_when_a_command_runs(monkeypatch, capsys):
+    """A newcomer's trial: with no C compiler the install fell back to pure Python, 4x
+    slower, and only ``pip install -v`` said so. Every command says it first, once, on
+    stderr; not where pure Python was asked for (``VADE_REPLAY_PURE=1``), nor where a
+    source changed since the build (which warns of itself), nor where it is compiled."""
+    from cli import _common
+    monkeypatch.delenv(native.PURE_ENV, raising=False)
+    monkeypatch.setattr(native, "_STALE", [])
+    monkeypatch.setattr(native, "compiled", lambda: ())
+    assert _common.run(lambda argv: 0, []) == 0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("note: vade_replay is not compiled here")
+    assert "VADE_REPLAY_PURE=1" in err and "The compiled build" in err
+    for setting in ("pure", "stale", "compiled"):
+        with monkeypatch.context() as m:
+            if setting == "pure":
+                m.setenv(native.PURE_ENV, "1")
+            elif setting == "stale":
+                m.setattr(native, "_STALE", ["vade_replay/step.py"])
+            else:
+                m.setattr(native, "compiled", lambda: ("vade_replay.step",))
+            assert _common.run(lambda argv: 0, []) == 0
+            assert capsys.readouterr().err == ""

@@ -121,6 +121,19 @@ def c_extensions() -> tuple[str, ...]:
     return tuple(out)
 
 
+def uncompiled_note() -> str | None:
+    """What the commands say first where nothing is compiled though nobody asked for pure
+    Python (``VADE_REPLAY_PURE``) and no source changed since a build (which warns of
+    itself): the install found no C compiler (or mypy) and fell back quietly, and a
+    newcomer's runs were 4x slower with nothing said but in ``pip install -v``."""
+    if pure_requested() or _STALE or compiled():
+        return None
+    return ("note: vade_replay is not compiled here (its install found no C compiler, or no "
+            "mypy): it runs as Python, 2.5-5x slower, with the same results. Install it again "
+            "where a C compiler is found (README, \"The compiled build\"), or set "
+            "VADE_REPLAY_PURE=1 to run it so without this note.")
+
+
 # The compiled modules found stale on importing the package (``install_switch``).
 _STALE: list[str] = []
 
@@ -205,8 +218,10 @@ def install_switch(package_dir: str) -> None:
         _C_OFF = True
         _STALE[:] = changed
         import warnings
-        warnings.warn(f"vade_replay: {', '.join(changed)} changed since it was compiled; "
-                      "running the Python sources (slower, same results). Install the "
-                      "package again (`pip install -e .` in a checkout) to compile them.",
-                      RuntimeWarning, stacklevel=2)
+        # (Explicit, with no source line: a newcomer took the line warn prints under the
+        # message for a traceback.)
+        warnings.warn_explicit(
+            f"vade_replay: {', '.join(changed)} changed since it was compiled; running the "
+            "Python sources (slower, same results). Install the package again (`pip install "
+            "-e .` in a checkout) to compile them.", RuntimeWarning, "vade_replay", 0)
         sys.meta_path.insert(0, _SourcesFirst())
