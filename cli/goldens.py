@@ -139,11 +139,25 @@ def _lock(folder: Path):
                           field="--dir") from None
     try:
         fcntl.flock(stream.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        # The lock file is removed when the run ends (a newcomer's trial: it stayed in the
+        # user's goldens folder). Locked, it must still be the file at the path: one
+        # opened just before another run removed it is no lock.
+        if os.fstat(stream.fileno()).st_ino != os.stat(path).st_ino:
+            raise OSError
     except OSError:
         stream.close()
         raise ConfigError("another vade-goldens is regenerating this folder now; wait for "
                           f"it to finish ({LOCK_NAME} is locked)", file=str(folder)) from None
     return stream
+
+
+def _unlock(folder: Path, stream) -> None:
+    """Remove the lock file, then let it go (``_lock``)."""
+    try:
+        (folder / LOCK_NAME).unlink(missing_ok=True)
+    except OSError:
+        pass  # (a read-only folder after all: the file stays, empty)
+    stream.close()
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -260,7 +274,7 @@ def _regenerate(folder: Path, sessions: list[Path]) -> int:
                 new.unlink(missing_ok=True)  # not moved over its golden: a failed run
     finally:
         if lock is not None:
-            lock.close()
+            _unlock(folder, lock)
 
 
 def entry() -> None:

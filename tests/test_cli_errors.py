@@ -473,6 +473,18 @@ def test_a_recording_cut_before_its_first_frame_says_so(tmp_path, size, needle):
     _assert_clean_error(run_cli("vade-replay", str(other)), "not an MCAP file")
 
 
+def test_a_review_or_a_folder_given_for_a_recording_says_what_to_give(tmp_path):
+    """A newcomer's trial: a review (``.rrd``) given to vade-replay was "not an MCAP file",
+    and a folder "a folder, not a recording", with no word of what to do."""
+    review = tmp_path / "whatif.rrd"
+    assert run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"), "--rerun",
+                   str(review)).returncode == 0
+    _assert_clean_error(run_cli("vade-replay", str(review)), str(review),
+                        "this is a rerun review", "open it with `rerun`")
+    _assert_clean_error(run_cli("vade-replay", str(tmp_path)), str(tmp_path),
+                        f"is a folder, not a recording (give its recordings: {tmp_path}/*.mcap)")
+
+
 def test_a_table_on_standard_output(tmp_path):
     """``--csv -``: the table is standard output's alone; the run's lines go to stderr."""
     import csv

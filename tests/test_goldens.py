@@ -178,7 +178,7 @@ def test_goldens_check_finds_a_stale_session_and_a_cut_golden_and_remakes_all_or
     assert {p.name: p.read_bytes() for p in tmp_path.glob("*.mcap")} == before
 
 
-def test_a_second_regeneration_of_a_folder_waits_its_turn(tmp_path):
+def test_a_second_regeneration_of_a_folder_waits_its_turn(tmp_path, monkeypatch):
     """Two at once wrote the same NAME.mcap.partial files and renamed them from under each
     other; the second is now refused while the first holds the folder's lock."""
     import fcntl
@@ -195,6 +195,23 @@ def test_a_second_regeneration_of_a_folder_waits_its_turn(tmp_path):
         # Checking needs no lock.
         assert run_cli("vade-goldens", "--check", "--dir", str(tmp_path)).returncode == 2
     assert run_cli("vade-goldens", "--dir", str(tmp_path)).returncode == 0
+    # (A newcomer's trial: the lock file stayed in the user's goldens folder.)
+    assert not (tmp_path / ".vade-goldens.lock").exists()
+    # A lock taken on a file another run removed (opened just before) is no lock: the path
+    # now names another file, and the run is refused.
+    import os
+
+    from cli import goldens
+    from vade_replay.errors import ConfigError
+    real_stat = os.stat
+
+    class _Other:
+        st_ino = -1
+
+    monkeypatch.setattr(goldens.os, "stat", lambda path, *a, **k: _Other()
+                        if str(path).endswith(".vade-goldens.lock") else real_stat(path, *a, **k))
+    with pytest.raises(ConfigError, match="another vade-goldens is regenerating"):
+        goldens._lock(tmp_path)
 
 
 def test_a_regeneration_says_what_it_changed_in_each_golden(tmp_path, monkeypatch):

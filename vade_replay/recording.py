@@ -577,7 +577,8 @@ class Recording:
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
         if self.path.is_dir():
-            raise RecordingError("is a folder, not a recording", file=str(self.path))
+            raise RecordingError("is a folder, not a recording (give its recordings: "
+                                 f"{self.path}/*.mcap)", file=str(self.path))
         if not self.path.is_file():
             raise RecordingError("no such file", file=str(self.path))
         self.profile = None
@@ -663,6 +664,9 @@ class Recording:
         if first.removeprefix(b"\xef\xbb\xbf").lstrip()[:1] in (b"{", b"["):
             return ("not a recording: this looks like a session file (JSON); record it with "
                     "vade-record first")
+        if first.startswith(b"RRF"):
+            return ("not a recording: this is a rerun review (vade-replay --rerun writes "
+                    "them); open it with `rerun`")
         if not (first.startswith(MCAP_MAGIC) or MCAP_MAGIC.startswith(first)):
             return "not an MCAP file (it does not begin with MCAP's magic bytes)"
         size = self.path.stat().st_size
