@@ -554,7 +554,7 @@ def test_a_recording_damaged_after_its_data_end_keeps_every_frame(tmp_path):
     path = tmp_path / "data.mcap"
     path.write_bytes(bytes(data))
     result = run_cli("vade-replay", str(path))
-    assert result.returncode == 2 and "complete frames: the data before byte" in result.stderr
+    assert result.returncode == 2 and "complete frames: reading stopped at byte" in result.stderr
     assert "Traceback" not in result.stderr
 
 

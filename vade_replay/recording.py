@@ -770,9 +770,12 @@ class Recording:
                     elif not (isinstance(exc, (EndOfFile, EOFError)) or at >= size):
                         # Damaged, not cut short: the reader stopped inside the file.
                         detail = str(exc) or type(exc).__name__
+                        # (A newcomer read "the data before byte N cannot be read" as
+                        # all of it lost, though the frames before it were read.)
                         raise RecordingError(
-                            f"damaged after {count} complete frames: the data before byte "
-                            f"{at} of {size} cannot be read ({detail})",
+                            f"damaged after {count} complete frames: reading stopped at byte "
+                            f"{at} of {size}, at a damaged chunk ({detail}); the frames "
+                            "before it were read",
                             file=str(self.path)) from None
                     complete = False  # cut short (a crash while recording)
         except OSError:
