@@ -171,7 +171,7 @@ class Progress:
             return
         if self.total:
             width = 30
-            done = int(width * self.count / self.total)
+            done = min(width, int(width * self.count / self.total))
             bar = "#" * done + "." * (width - done)
             sys.stderr.write(f"\r{self.label} [{bar}] {self.count}/{self.total} frames")
         else:

@@ -49,7 +49,7 @@ def _main(args: argparse.Namespace) -> int:
     # (Named by its option, as the tables' are: "adir: is a folder" did not say which.)
     ensure_writable(out, field="-o" if args.output else None)
     _check_output(out, Path(args.session), session)
-    progress = Progress("recording", None)
+    progress = Progress("recording", session.frame_count())
     early: list[str] = []
 
     def warn_early(warnings: list[str]) -> None:

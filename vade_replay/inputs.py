@@ -85,6 +85,13 @@ def devices(doc: dict) -> tuple[str, ...]:
     return DEVICES + tuple(tool["name"] for tool in doc.get("tools", []))
 
 
+def keyframe_frame_count(tracker: dict) -> int:
+    """How many frames ``from_keyframes`` makes of a tracker block: one every 1/rate_hz s
+    from 0 to duration_s."""
+    rate = int(tracker.get("rate_hz", 60))
+    return int(math.floor(float(tracker["duration_s"]) * rate + 1e-9)) + 1
+
+
 def from_keyframes(tracker: dict, units: str, *, file: str,
                    known: tuple[str, ...] = DEVICES) -> Iterator[TrackerFrame]:
     """Resample keyframes (linear position, slerp rotation, held grip) at ``rate_hz``."""
@@ -95,7 +102,7 @@ def from_keyframes(tracker: dict, units: str, *, file: str,
                                field=f"tracker.devices.{name}")
     factor = UNIT_TO_M[units]
     rate = int(tracker.get("rate_hz", 60))
-    count = int(math.floor(float(tracker["duration_s"]) * rate + 1e-9)) + 1
+    count = keyframe_frame_count(tracker)
     devices = {name: _keyframes(name, frames, factor, file)
                for name, frames in sorted(tracker["devices"].items())}
     noise = tracker.get("noise")

@@ -548,6 +548,12 @@ class Session:
             return f"{head}:files/{name}"
         return str(Path(self.source).parent / name)
 
+    def frame_count(self) -> int | None:
+        """How many frames ``tracker_frames`` makes, where that is known before reading
+        them (keyframes; not a CSV log): a progress bar's total."""
+        tracker = self.doc["tracker"]
+        return None if "csv" in tracker else inputs.keyframe_frame_count(tracker)
+
     def tracker_frames(self) -> Iterator[TrackerFrame]:
         """The tracker stream to record (keyframes resampled, or the CSV log)."""
         tracker = self.doc["tracker"]
