@@ -580,7 +580,7 @@ class CollisionWorld:
     def surface_gaps(self, part: str, base_from_part: sp.Pose, within: float
                      ) -> tuple[tuple[int, ...], tuple[float, ...]]:
         """``surfaces_within``, and each one's distance from the posed part (what a flight
-        leaving the base passes them down to, ``Flight.grace_within``)."""
+        leaving the base keeps, ``Flight.grace_gaps``)."""
         if self._base is None:
             return (), ()
         obj = fcl.CollisionObject(self._model(part), _transform(base_from_part))
@@ -595,9 +595,17 @@ class CollisionWorld:
 
     def surface_distance(self, part: str, base_from_part: sp.Pose, index: int) -> float:
         """Distance from the posed part to one of the base's surfaces (``base_surfaces``)."""
-        self.stats["fcl_distance_queries"] += 1
-        return _distance(fcl.CollisionObject(self._model(part), _transform(base_from_part)),
-                         self._surface_object(index))  # type: ignore[arg-type]
+        return self.surface_distances(part, base_from_part, (index,))[0]
+
+    def surface_distances(self, part: str, base_from_part: sp.Pose,
+                          surfaces: tuple[int, ...]) -> list[float]:
+        """``surface_distance`` to each of ``surfaces``, with one posed part."""
+        obj = fcl.CollisionObject(self._model(part), _transform(base_from_part))
+        out = []
+        for index in surfaces:
+            self.stats["fcl_distance_queries"] += 1
+            out.append(_distance(obj, self._surface_object(index)))  # type: ignore[arg-type]
+        return out
 
     def _graced_nearest(self, part: str, base_from_part: sp.Pose, grace: tuple[int, ...],
                         nearest_points: bool, mate: tuple[str, int] | None = None,
@@ -651,15 +659,18 @@ class CollisionWorld:
         return normal, on_face
 
     def base_contact_at(self, part: str, base_from_part: sp.Pose,
-                        grace: tuple[int, ...] | None = None
+                        grace: tuple[int, ...] | None = None,
+                        only: tuple[int, ...] | None = None
                         ) -> tuple[sp.Vec3 | None, bool, sp.Vec3]:
         """``base_contact``, and the part's point nearest the base (base axes; where an
-        impact acts, ``step._graze``); the origin with no normal."""
+        impact acts, ``step._graze``); the origin with no normal. With ``only``, of those
+        surfaces alone."""
         if self._base is None:
             return None, False, sp.ZERO3
         faces = self._base_faces
-        if grace:
-            d, result, which = self._graced_nearest(part, base_from_part, grace, True)
+        if grace or only is not None:
+            d, result, which = self._graced_nearest(part, base_from_part, grace or (), True,
+                                                    only=only)
             if result is None:
                 return None, False, sp.ZERO3
             faces = faces[self._surfaces()[which].faces]

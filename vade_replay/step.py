@@ -575,14 +575,15 @@ def _release(f: _Frame, index: int, hand: str) -> None:
                 return
             # Touching a face that does not hold it up (underneath, a wall): it flies, not
             # into the base, which it may graze until they separate.
-            v, w = _graze(body, cast(sp.Pose, f.base_pose), part.pose, normal, point, v, w)
+            v, w = _graze(body, cast(sp.Pose, f.base_pose), part.pose, normal, point, v, w,
+                          _base_motion(f, point)[0])
             f.events.append(PartReleased(frame, part.name, flies.value, hand, v, w))
-            grace, within = _grace(f, part.name, base_from_part)
+            grace, gaps = _grace(f, part.name, base_from_part)
             flight = free.start(t_ns=f.t_ns, cm=cm, velocity=v, omega_world=w,
                                 world_from_part=part.pose,
                                 part_from_principal=body.part_from_principal,
                                 principal_moments=body.principal_moments, base_clear=False,
-                                grace=grace, grace_within=within)
+                                grace=grace, grace_gaps=gaps)
             f.change_mode(index, PartState(part.name, INSPACE, part.pose, v, w, flight), flies)
             return
     near = f.collision.environment_near(cm, body.radius_about_cm + physics.contact_tolerance)
@@ -628,23 +629,36 @@ def _flight_pose(f: _Frame, body: Body, start: free.Flight,
 _TOUCHING: Final = 1e-3
 
 
-def _grace(f: _Frame, part: str, base_from_part: sp.Pose
+def _grace(f: _Frame, part: str, base_from_part: sp.Pose, before: free.Flight | None = None
            ) -> tuple[tuple[int, ...] | None, tuple[float, ...]]:
     """What of the base a part leaving it at ``base_from_part`` passes until they have
     separated once (``Flight.grace``): the surfaces it touches (within twice the contact
     tolerance; ``CollisionWorld.surface_gaps``), or None for the whole base
-    (``physics.flight_grace`` whole_base); and how near each may come before it stops the
-    part (``Flight.grace_within``): half the gap it leaves at, so that a part moving along
-    a surface passes it and one moving into it meets it (an engineer's trial: a pin that
-    slid up out of a bore with 0.1 mm of clearance moved sideways through the bore's wall
-    into the boss); nothing of one it leaves at distance 0 (a nominal fit, a face it
-    rested on), which it passes as before."""
+    (``physics.flight_grace`` whole_base); and the gap it leaves each at
+    (``Flight.grace_gaps``), where it is met at half that (``_met_at``), so that a part
+    moving along a surface passes it and one moving into it meets it (an engineer's trial:
+    a pin that slid up out of a bore with 0.1 mm of clearance moved sideways through the
+    bore's wall into the boss). A graze (``before``, the flight that met the base) keeps
+    the gaps its surfaces were first left at: taken again at each meeting, the gap halved
+    each time, and a part pressed onto a face it could not rest on crept through it (a
+    review: 10 mm into a plate at 87 degrees)."""
     physics = f.scene.physics
     if physics.flight_grace == "whole_base":
         return None, ()
-    tol = physics.contact_tolerance
-    grace, gaps = f.collision.surface_gaps(part, base_from_part, 2.0 * tol)
-    return grace, tuple(0.5 * d if d >= _TOUCHING * tol else 0.0 for d in gaps)
+    grace, gaps = f.collision.surface_gaps(part, base_from_part,
+                                           2.0 * physics.contact_tolerance)
+    if before is not None and before.grace:
+        first = dict(zip(before.grace, before.grace_gaps))
+        gaps = tuple(first.get(s, d) for s, d in zip(grace, gaps))
+    return grace, gaps
+
+
+def _met_at(f: _Frame, gap: float) -> float:
+    """How near a part comes to a surface it left at ``gap`` before it meets it: half that;
+    nothing (0: it passes it) where it left it touching, under a thousandth of the contact
+    tolerance, there being no telling touching from overlapping at distance 0 (a nominal
+    fit, a face it rested on)."""
+    return 0.5 * gap if gap >= _TOUCHING * f.scene.physics.contact_tolerance else 0.0
 
 
 def _finite(values: tuple[float, ...]) -> bool:
@@ -681,7 +695,7 @@ def _fly(f: _Frame, index: int) -> None:
     near = f.collision.environment_near(center, reach)
     base = _base_path(f, center, reach)
     grace = None if flight.base_clear else flight.grace
-    within = () if flight.base_clear else flight.grace_within
+    gaps = () if flight.base_clear else flight.grace_gaps
     if base is not None and not flight.base_clear:
         # Just off the base: what it touched as it left (the whole base, with flight_grace
         # whole_base) is no obstacle until the part has separated from it.
@@ -696,13 +710,13 @@ def _fly(f: _Frame, index: int) -> None:
         f.parts[index] = moved
         return
     contact = _time_of_contact(f, body, start, near, base, t_a, t_b, part.pose, pose_b, grace,
-                               within)
+                               gaps)
     if contact is None:
         f.parts[index] = moved
         return
     t_c, pose_c, other, surface = contact
     if other is None:
-        # Of what it passes, not the surface it met (``Flight.grace_within``).
+        # Of what it passes, not the surface it met (``Flight.grace_gaps``).
         if grace is not None and surface >= 0:
             grace = tuple(s for s in grace if s != surface)
         f.events.append(ContactMade(f.inputs.frame, part.name, Cause.HIT_BASE.value,
@@ -723,8 +737,10 @@ def _fly(f: _Frame, index: int) -> None:
         if up is None and normal is not None:
             up = _support_elsewhere(f, part.name, base_from_part, grace or ())
         again = up is None and _met_again(f, body, start, t_a, part.pose, pose_c)
+        # (The session's time, not the flight's: met at once, its flight hardly advances.)
+        held_ns = (start.held_ns or f.t_prev_ns) if again else 0
         if again:
-            up = _wedged(f, start, normal)
+            up = _wedged(f, start, normal, f.t_ns - held_ns)
         if up is not None:
             _rest_on_base(f, index, base_from_part, up, Cause.LANDED_ON_BASE)
             return
@@ -736,14 +752,22 @@ def _fly(f: _Frame, index: int) -> None:
                                moments=body.principal_moments)
         if again:
             w_c = _zero3()  # held against the base: it slides, no longer turning
-        v_c, w_c = _graze(body, base_at_contact, pose_c, normal, point, v_c, w_c)
-        grace, within = _grace(f, part.name, base_from_part)
+        v_c, w_c = _graze(body, base_at_contact, pose_c, normal, point, v_c, w_c,
+                          _base_motion(f, point)[0])
+        if surface >= 0:
+            # Met where it was passed: back out to the gap it first left that surface at,
+            # or it meets it again at once, and again, nearer each time.
+            pose_c, cm_c = _back_out(f, part.name, start, surface, base_at_contact, pose_c,
+                                     cm_c)
+            base_from_part = base_at_contact.inverse().compose(pose_c)
+        grace, gaps = _grace(f, part.name, base_from_part, start)
         flight = free.start(t_ns=t_c, cm=cm_c, velocity=v_c, omega_world=w_c,
                             world_from_part=pose_c, part_from_principal=body.part_from_principal,
                             principal_moments=body.principal_moments, base_clear=False,
-                            grace=grace, grace_within=within,
+                            grace=grace, grace_gaps=gaps,
                             grazes=start.grazes + 1 if again else 1,
-                            grazed_normal=normal if normal is not None else sp.ZERO3)
+                            grazed_normal=normal if normal is not None else sp.ZERO3,
+                            held_ns=held_ns)
         f.parts[index] = PartState(part.name, INSPACE, pose_c, v_c, w_c, flight)
         return
     f.events.append(ContactMade(f.inputs.frame, part.name, Cause.HIT_ENVIRONMENT.value,
@@ -751,8 +775,32 @@ def _fly(f: _Frame, index: int) -> None:
     f.change_mode(index, PartState(part.name, STATIC, pose_c), Cause.HIT_ENVIRONMENT)
 
 
-# Met again so many times in a row, a part rests where it is (``_wedged``).
-_WEDGED_AFTER: Final = 50
+# Met again and again so for this long (ns), a part rests where it is (``_wedged``).
+_WEDGED_AFTER_NS: Final = 100_000_000
+
+
+def _back_out(f: _Frame, part: str, start: free.Flight, surface: int, base: sp.Pose,
+              pose: sp.Pose, cm: sp.Vec3) -> tuple[sp.Pose, sp.Vec3]:
+    """The part's pose and CM moved along the normal of ``surface`` (one its flight passed,
+    ``Flight.grace``, met at half the gap it first left it at) back out to that gap."""
+    gap = dict(zip(start.grace or (), start.grace_gaps)).get(surface)
+    if gap is None:
+        return pose, cm
+    base_from_part = base.inverse().compose(pose)
+    normal, _, _ = f.collision.base_contact_at(part, base_from_part, None, (surface,))
+    if normal is None:
+        return pose, cm
+    now = f.collision.surface_distance(part, base_from_part, surface)
+    depth = gap - now
+    if not depth > 0.0:
+        return pose, cm
+    shift = sp.scale(sp.quat_rotate(base.rotation, normal), depth)
+    moved = sp.Pose(sp.add(pose.position, shift), pose.rotation)
+    # Not where that brings it nearer the surface elsewhere (a pin spanning its bore,
+    # one surface: out from one side is into the other, and back, frame after frame).
+    if f.collision.surface_distance(part, base.inverse().compose(moved), surface) <= now:
+        return pose, cm
+    return moved, sp.add(cm, shift)
 
 
 def _met_again(f: _Frame, body: Body, start: free.Flight, t_a: int, pose_a: sp.Pose,
@@ -769,19 +817,23 @@ def _met_again(f: _Frame, body: Body, start: free.Flight, t_a: int, pose_a: sp.P
     return moved + angle * body.radius_about_cm <= f.scene.physics.contact_tolerance
 
 
-def _wedged(f: _Frame, start: free.Flight, normal: sp.Vec3 | None) -> sp.Vec3 | None:
+def _wedged(f: _Frame, start: free.Flight, normal: sp.Vec3 | None,
+            held_ns: int) -> sp.Vec3 | None:
     """For a part met again (``_met_again``) at a face of normal ``normal`` (base axes),
     soon after one of normal ``start.grazed_normal``: the way up (base axes) if the two
     faces hold it up together, the way a face that holds a part up does alone (``_support``),
     else None (it slides on between them). They hold it if straight up is a sum of the two
     normals with no negative part, to within 0.1 (6 degrees): a pin across a bore's mouth,
     its end against one side and its flank on the rim, is wedged; a pin against two
-    facets of its bore, both upright, falls on. Met again ``_WEDGED_AFTER`` times in a row,
-    a part rests where it is whatever the faces (no contact force in flight moves it)."""
+    facets of its bore, both upright, falls on. Met again and again so for 0.1 s
+    (``held_ns`` so far; a time, not a count of meetings, which is at most one a frame and
+    so would depend on the tracker's rate), a part rests where it is whatever the faces:
+    no contact force in flight moves it (a pin tilted across its bore, over the tilt its
+    clearance allows, touches the one surface of its wall on both sides)."""
     up = _support(f, None)
     if up is None:
         return None  # nothing presses it onto anything
-    if start.grazes >= _WEDGED_AFTER:
+    if held_ns >= _WEDGED_AFTER_NS:
         return up
     if normal is None:
         return None  # overlapping: no face to tell
@@ -833,25 +885,30 @@ def _support(f: _Frame, normal: sp.Vec3 | None) -> sp.Vec3 | None:
 
 
 def _graze(body: Body, base: sp.Pose, pose: sp.Pose, normal: sp.Vec3 | None,
-           point: sp.Vec3, v: sp.Vec3, w: sp.Vec3) -> tuple[sp.Vec3, sp.Vec3]:
+           point: sp.Vec3, v: sp.Vec3, w: sp.Vec3,
+           v_face: sp.Vec3 = sp.ZERO3) -> tuple[sp.Vec3, sp.Vec3]:
     """The velocity and angular velocity (world) of a part at ``pose`` that meets a base
     face it slides along (normal and the part's touching point in the axes of the base,
-    posed at ``base``): the velocity loses its component into the face (as before), and
-    the turning that still carries the touching point into the face is taken out by the
-    least turning impulse that does (about ``r x n``, in the inertia's metric, so the
-    energy only falls). A part turned into a wall kept turning into it. Not a full impact
-    at the point, which would set a part met flat on a face turning about the corner fcl
-    names as nearest."""
+    posed at ``base``; ``v_face``, the world velocity of the base there): the velocity
+    loses its component into the face, relative to the face (a wall moving into a part
+    pushes it: it passed through it), and where the turning still carries the touching
+    point into the face, the least turning impulse (about ``r x n``, in the inertia's
+    metric, so the energy only falls) takes out what does: a part turned into a wall kept
+    turning into it, and a part leaving a face keeps the turning its leaving outruns (a
+    review: a block thrown off a face lost all its spin). Not a full impact at the point,
+    which would set a part met flat on a face turning about the corner fcl names as
+    nearest."""
     if normal is None:
         return v, w
     n = sp.quat_rotate(base.rotation, normal)
-    into = sp.dot(v, n)
+    into = sp.dot(sp.sub(v, v_face), n)
     if into < 0.0:
         v = sp.sub(v, sp.scale(n, into))
+        into = 0.0
     r = sp.sub(base.apply(point), pose.apply(body.center_of_mass))
     arm = sp.cross(r, n)
-    turning = sp.dot(w, arm)
-    if not turning < 0.0:
+    point_into = into + sp.dot(w, arm)
+    if not point_into < 0.0:
         return v, w
     # In principal axes the inverse inertia is diagonal.
     q = sp.quat_mul(pose.rotation, body.part_from_principal)
@@ -861,7 +918,7 @@ def _graze(body: Body, base: sp.Pose, pose: sp.Pose, normal: sp.Vec3 | None,
     reach = sp.dot(a, turn)
     if not reach > 0.0:
         return v, w
-    return v, sp.sub(w, sp.quat_rotate(q, sp.scale(turn, turning / reach)))
+    return v, sp.sub(w, sp.quat_rotate(q, sp.scale(turn, point_into / reach)))
 
 
 def _rest_on_base(f: _Frame, index: int, base_from_part: sp.Pose, up: sp.Vec3,
@@ -921,14 +978,14 @@ def _base_path(f: _Frame, center: sp.Vec3, reach: float) -> _BasePath | None:
 def _time_of_contact(f: _Frame, body: Body, start: free.Flight, near: tuple[int, ...],
                      base: _BasePath | None, t_a: int, t_b: int, pose_a: sp.Pose,
                      pose_b: sp.Pose, grace: tuple[int, ...] | None = None,
-                     within: tuple[float, ...] = ()
+                     gaps: tuple[float, ...] = ()
                      ) -> tuple[int, sp.Pose, int | None, int] | None:
     """First time in [t_a, t_b] at which the part comes within the contact tolerance of an
     environment object or of the (moving) base part: ``(time, pose, index, surface)``, with
     index ``None`` for the base, or ``None`` when there is no contact. With ``grace`` the
     base is taken without those surfaces (a part that has just left it: ``Flight.grace``),
-    except that each is met within its ``within`` (``Flight.grace_within``) where that is
-    above 0; ``surface`` is the one met so (-1 for any other obstacle).
+    except that each is met at half the gap in ``gaps`` it was left at (``_met_at``);
+    ``surface`` is the one met so (-1 for any other obstacle).
 
     Conservative advancement: at distance d no point of the part can close the gap in less
     than d / (bound on its speed relative to the obstacle), so stepping by that never passes
@@ -943,8 +1000,15 @@ def _time_of_contact(f: _Frame, body: Body, start: free.Flight, near: tuple[int,
         omega_max = sp.norm(start.omega_world)
     else:
         omega_max = free.max_angular_speed(start.momentum_principal, body.principal_moments)
-    met = tuple((s, d) for s, d in zip(grace or (), within) if d > 0.0) \
-        if base is not None else ()
+    met = tuple((s, _met_at(f, d)) for s, d in zip(grace or (), gaps)
+                if _met_at(f, d) > 0.0) if base is not None else ()
+    met_surfaces = tuple(s for s, _ in met)
+    # Where the part is from each at the start: a surface it is within reach of is met
+    # only as the part comes nearer it than that (a pin spanning its bore, within reach of
+    # its wall on both sides, falls down it; met at once, it hung where it was).
+    from_start = f.collision.surface_distances(
+        body.name, cast(_BasePath, base).at_time(t_a).inverse().compose(pose_a),
+        met_surfaces) if met else []
 
     def probe(t: int, pose: sp.Pose) -> tuple[float, float, int | None, int]:
         """(room, ahead, index, surface): the least of each obstacle's distance less where
@@ -961,11 +1025,16 @@ def _time_of_contact(f: _Frame, body: Body, start: free.Flight, near: tuple[int,
             if d_base < d:
                 d, which = d_base, None
         room, ahead, hit, surface = d - tol, d - 0.5 * tol, which, -1
-        for s, d_s in met:
-            gap = f.collision.surface_distance(body.name, base_from_part, s) - d_s
-            if gap < room:
-                room, hit, surface = gap, None, s
-            ahead = min(ahead, gap + 0.5 * d_s)
+        if met:
+            for (s, d_s), d_now, d_0 in zip(met, f.collision.surface_distances(
+                    body.name, base_from_part, met_surfaces), from_start):
+                gap = d_now - d_s
+                if gap <= 0.0 and not d_now < d_0:
+                    ahead = min(ahead, 0.0)  # within reach, not nearer: the least step
+                    continue
+                if gap < room:
+                    room, hit, surface = gap, None, s
+                ahead = min(ahead, gap + 0.5 * d_s)
         return room, ahead, hit, surface
 
     base_speed = 0.0
@@ -1290,12 +1359,12 @@ def _leave(f: _Frame, index: int, cause: Cause, rel: sp.Pose, v_rel: sp.Vec3,
     v = sp.add(sp.quat_rotate(q, v_rel), v_base)
     w = sp.add(sp.quat_rotate(q, w_rel), w_base)
     t_ns = f.t_ns if at >= 1.0 else f.t_prev_ns + int(at * (f.t_ns - f.t_prev_ns))
-    grace, within = _grace(f, part.name, rel)
+    grace, gaps = _grace(f, part.name, rel)
     flight = free.start(t_ns=t_ns, cm=pose.apply(body.center_of_mass), velocity=v,
                         omega_world=w, world_from_part=pose,
                         part_from_principal=body.part_from_principal,
                         principal_moments=body.principal_moments, base_clear=False,
-                        grace=grace, grace_within=within)
+                        grace=grace, grace_gaps=gaps)
     f.change_mode(index, PartState(part.name, INSPACE, pose, v, w, flight), cause)
 
 

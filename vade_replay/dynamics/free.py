@@ -55,22 +55,24 @@ class Flight:
     # (``physics.flight_grace`` "touched"); None: the whole base ("whole_base", as before
     # 2026-11-23).
     grace: tuple[int, ...] | None
-    # Per surface ``grace`` lists, how near the part may come before it is a contact: half
-    # the gap it left at (0 for one it touched, at distance 0, which it passes).
-    grace_within: tuple[float, ...]
+    # Per surface ``grace`` lists, the gap the part first left it at (``step._grace``): it
+    # is met at half that (one left touching, at distance 0, is passed).
+    grace_gaps: tuple[float, ...]
     # Whether it began where the part met a base face that could not hold it (a graze):
     # how many times in a row it met one so, each soon after the last (``step._met_again``;
     # 0: it did not), and the normal of the last (base axes).
     grazes: int
     grazed_normal: sp.Vec3
+    # Since when (ns) the part has been met again and again so (0: it has not).
+    held_ns: int
 
     # Not frozen, and its own __init__: see vade_replay/frames.py (a value all the same).
     def __init__(self, t0_ns: int, cm0: sp.Vec3, v0: sp.Vec3, t_ns: int,
                  world_from_principal: sp.Quat, momentum_principal: sp.Vec3,
                  omega_world: sp.Vec3, base_clear: bool = True,
                  grace: tuple[int, ...] | None = None,
-                 grace_within: tuple[float, ...] = (), grazes: int = 0,
-                 grazed_normal: sp.Vec3 = sp.ZERO3) -> None:
+                 grace_gaps: tuple[float, ...] = (), grazes: int = 0,
+                 grazed_normal: sp.Vec3 = sp.ZERO3, held_ns: int = 0) -> None:
         self.t0_ns = t0_ns
         self.cm0 = cm0
         self.v0 = v0
@@ -80,17 +82,18 @@ class Flight:
         self.omega_world = omega_world
         self.base_clear = base_clear
         self.grace = grace
-        self.grace_within = grace_within
+        self.grace_gaps = grace_gaps
         self.grazes = grazes
         self.grazed_normal = grazed_normal
+        self.held_ns = held_ns
 
 
 def start(*, t_ns: int, cm: sp.Vec3, velocity: sp.Vec3, omega_world: sp.Vec3,
           world_from_part: sp.Pose, part_from_principal: sp.Quat,
           principal_moments: sp.Vec3, base_clear: bool = True,
           grace: tuple[int, ...] | None = None,
-          grace_within: tuple[float, ...] = (), grazes: int = 0,
-          grazed_normal: sp.Vec3 = sp.ZERO3) -> Flight:
+          grace_gaps: tuple[float, ...] = (), grazes: int = 0,
+          grazed_normal: sp.Vec3 = sp.ZERO3, held_ns: int = 0) -> Flight:
     """Flight state from a release: CM position and velocity, angular velocity, part pose."""
     world_from_principal = sp.quat_normalize(sp.quat_mul(world_from_part.rotation,
                                                          part_from_principal))
@@ -99,7 +102,7 @@ def start(*, t_ns: int, cm: sp.Vec3, velocity: sp.Vec3, omega_world: sp.Vec3,
                 principal_moments[1] * omega_principal[1],
                 principal_moments[2] * omega_principal[2])
     return Flight(t_ns, cm, velocity, t_ns, world_from_principal, momentum, omega_world,
-                  base_clear, grace, grace_within, grazes, grazed_normal)
+                  base_clear, grace, grace_gaps, grazes, grazed_normal, held_ns)
 
 
 def cm_at(flight: Flight, t_ns: int, gravity: sp.Vec3) -> tuple[sp.Vec3, sp.Vec3]:
@@ -371,7 +374,8 @@ def advance(flight: Flight, t_ns: int, *, model: str, moments: sp.Vec3, order: i
                                           flight.world_from_principal))
         return Flight(flight.t0_ns, flight.cm0, flight.v0, t_ns, q, flight.momentum_principal,
                       flight.omega_world, flight.base_clear, flight.grace,
-                      flight.grace_within, flight.grazes, flight.grazed_normal)
+                      flight.grace_gaps, flight.grazes, flight.grazed_normal,
+                      flight.held_ns)
     if model == "rk4":
         q, m = rotate_rk4(flight.world_from_principal, flight.momentum_principal, dt, moments,
                           max_step_s=max_step_s)
@@ -388,8 +392,8 @@ def advance(flight: Flight, t_ns: int, *, model: str, moments: sp.Vec3, order: i
         q, m = rotate_momentum(flight.world_from_principal, flight.momentum_principal, dt,
                                moments, order=order, max_step_s=max_step_s)
     return Flight(flight.t0_ns, flight.cm0, flight.v0, t_ns, q, m, flight.omega_world,
-                  flight.base_clear, flight.grace, flight.grace_within, flight.grazes,
-                  flight.grazed_normal)
+                  flight.base_clear, flight.grace, flight.grace_gaps, flight.grazes,
+                  flight.grazed_normal, flight.held_ns)
 
 
 def max_angular_speed(momentum: sp.Vec3, moments: sp.Vec3) -> float:
