@@ -635,7 +635,7 @@ def _grace(f: _Frame, part: str, base_from_part: sp.Pose, before: free.Flight | 
     separated once (``Flight.grace``): the surfaces it touches (within twice the contact
     tolerance; ``CollisionWorld.surface_gaps``), or None for the whole base
     (``physics.flight_grace`` whole_base); and the gap it leaves each at
-    (``Flight.grace_gaps``), where it is met at half that (``_met_at``), so that a part
+    (``Flight.grace_gaps``), where it is met at a tenth of that (``_met_at``), so that a part
     moving along a surface passes it and one moving into it meets it (an engineer's trial:
     a pin that slid up out of a bore with 0.1 mm of clearance moved sideways through the
     bore's wall into the boss). A graze (``before``, the flight that met the base) keeps
@@ -654,11 +654,13 @@ def _grace(f: _Frame, part: str, base_from_part: sp.Pose, before: free.Flight | 
 
 
 def _met_at(f: _Frame, gap: float) -> float:
-    """How near a part comes to a surface it left at ``gap`` before it meets it: half that;
+    """How near a part comes to a surface it left at ``gap`` before it meets it: a tenth of
+    that (half, at first, made the bore's wall and rim, one surface in reach on both sides,
+    wedge a pin tilted half a degree in a bore of 0.1 mm clearance half way down);
     nothing (0: it passes it) where it left it touching, under a thousandth of the contact
     tolerance, there being no telling touching from overlapping at distance 0 (a nominal
     fit, a face it rested on)."""
-    return 0.5 * gap if gap >= _TOUCHING * f.scene.physics.contact_tolerance else 0.0
+    return 0.1 * gap if gap >= _TOUCHING * f.scene.physics.contact_tolerance else 0.0
 
 
 def _finite(values: tuple[float, ...]) -> bool:
@@ -782,7 +784,7 @@ _WEDGED_AFTER_NS: Final = 100_000_000
 def _back_out(f: _Frame, part: str, start: free.Flight, surface: int, base: sp.Pose,
               pose: sp.Pose, cm: sp.Vec3) -> tuple[sp.Pose, sp.Vec3]:
     """The part's pose and CM moved along the normal of ``surface`` (one its flight passed,
-    ``Flight.grace``, met at half the gap it first left it at) back out to that gap."""
+    ``Flight.grace``, met at a tenth of the gap it first left it at) back out to that gap."""
     gap = dict(zip(start.grace or (), start.grace_gaps)).get(surface)
     if gap is None:
         return pose, cm
@@ -823,9 +825,10 @@ def _wedged(f: _Frame, start: free.Flight, normal: sp.Vec3 | None,
     soon after one of normal ``start.grazed_normal``: the way up (base axes) if the two
     faces hold it up together, the way a face that holds a part up does alone (``_support``),
     else None (it slides on between them). They hold it if straight up is a sum of the two
-    normals with no negative part, to within 0.1 (6 degrees): a pin across a bore's mouth,
-    its end against one side and its flank on the rim, is wedged; a pin against two
-    facets of its bore, both upright, falls on. Met again and again so for 0.1 s
+    normals with no negative part, to within 0.1 (6 degrees), whose weights sum to at most
+    10 (a V no narrower than a face that holds a part alone): a part in a V-groove is
+    wedged; a pin against two facets of its bore, both upright, or against both sides of
+    its bore, tilted, falls on. Met again and again so for 0.1 s
     (``held_ns`` so far; a time, not a count of meetings, which is at most one a frame and
     so would depend on the tracker's rate), a part rests where it is whatever the faces:
     no contact force in flight moves it (a pin tilted across its bore, over the tilt its
@@ -844,7 +847,11 @@ def _wedged(f: _Frame, start: free.Flight, normal: sp.Vec3 | None,
     det = 1.0 - c * c
     if det > 1e-12:
         a, b = (p1 - c * p2) / det, (p2 - c * p1) / det
-        if a >= 0.0 and b >= 0.0:
+        # A V no narrower than a face holds alone (its normal within 84 degrees of up,
+        # ``_MIN_SUPPORT_COS``): two walls facing each other, as a bore's on both sides of
+        # a pin tilted within the contact tolerance, do not hold it (a pin so wedged half a
+        # degree off upright, 7 mm above its bore's bottom).
+        if a >= 0.0 and b >= 0.0 and (a + b) * _MIN_SUPPORT_COS <= 1.0:
             best = min(best, sp.norm(sp.sub(up, sp.add(sp.scale(n1, a), sp.scale(n2, b)))))
     return up if best <= 0.1 else None
 
@@ -984,7 +991,7 @@ def _time_of_contact(f: _Frame, body: Body, start: free.Flight, near: tuple[int,
     environment object or of the (moving) base part: ``(time, pose, index, surface)``, with
     index ``None`` for the base, or ``None`` when there is no contact. With ``grace`` the
     base is taken without those surfaces (a part that has just left it: ``Flight.grace``),
-    except that each is met at half the gap in ``gaps`` it was left at (``_met_at``);
+    except that each is met at a tenth of the gap in ``gaps`` it was left at (``_met_at``);
     ``surface`` is the one met so (-1 for any other obstacle).
 
     Conservative advancement: at distance d no point of the part can close the gap in less

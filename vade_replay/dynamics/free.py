@@ -56,7 +56,7 @@ class Flight:
     # 2026-11-23).
     grace: tuple[int, ...] | None
     # Per surface ``grace`` lists, the gap the part first left it at (``step._grace``): it
-    # is met at half that (one left touching, at distance 0, is passed).
+    # is met at a tenth of that (one left touching, at distance 0, is passed).
     grace_gaps: tuple[float, ...]
     # Whether it began where the part met a base face that could not hold it (a graze):
     # how many times in a row it met one so, each soon after the last (``step._met_again``;
