@@ -55,8 +55,9 @@ class Flight:
     # (``physics.flight_grace`` "touched"); None: the whole base ("whole_base", as before
     # 2026-11-23).
     grace: tuple[int, ...] | None
-    # Per surface ``grace`` lists, the gap the part first left it at (``step._grace``): it
-    # is met at a tenth of that (one left touching, at distance 0, is passed).
+    # Per surface ``grace`` lists, the gap the part first left it at, raised to the farthest
+    # it has been from it at a frame's start (``step._grace``, ``step._fly``): it is met at a
+    # tenth of that (one left touching, at distance 0, is passed until then).
     grace_gaps: tuple[float, ...]
     # Whether it began where the part met a base face that could not hold it (a graze):
     # how many times in a row it met one so, each soon after the last (``step._met_again``;
