@@ -662,7 +662,10 @@ def _met_at(f: _Frame, gap: float) -> float:
     nothing (0: it passes it) where it left it touching, under a thousandth of the contact
     tolerance, there being no telling touching from overlapping at distance 0 (a nominal
     fit, a face it rested on)."""
-    return 0.1 * gap if gap >= _TOUCHING * f.scene.physics.contact_tolerance else 0.0
+    tol = f.scene.physics.contact_tolerance
+    # (No farther than the tolerance, where the rest of the base is met: a gap raised by a
+    # part that went far from a surface before coming back is met as any other face.)
+    return min(0.1 * gap, tol) if gap >= _TOUCHING * tol else 0.0
 
 
 def _finite(values: tuple[float, ...]) -> bool:
@@ -813,6 +816,9 @@ def _back_out(f: _Frame, part: str, start: free.Flight, surface: int, base: sp.P
     gap = dict(zip(start.grace or (), start.grace_gaps)).get(surface)
     if gap is None:
         return pose, cm
+    # (Not beyond twice the tolerance, where a surface stops being passed: a gap raised by a
+    # part that went far from the surface would be a jump, not a back-out.)
+    gap = min(gap, 2.0 * f.scene.physics.contact_tolerance)
     base_from_part = base.inverse().compose(pose)
     normal, _, _ = f.collision.base_contact_at(part, base_from_part, None, (surface,))
     if normal is None:
