@@ -600,6 +600,20 @@ def test_a_pin_let_go_turning_in_its_bore_falls_down_it_never_into_its_wall(tilt
         assert width >= 10e-3 - 2 * 1.48e-4, (tilt, lowest, width)
 
 
+def _block_by_a_plate(duration_s: float, carried: list) -> dict:
+    """A 20 mm block picked up off the table (0.6 m down) by the right hand, then
+    ``carried`` (its later keyframes); a 400 x 400 x 10 mm plate for the base, posed by
+    the left hand's keyframes the test adds; gravity 9.81 (the free flight's 0.25 of it)."""
+    return session_doc(
+        parts=[{"name": "block", "shape": {"type": "box", "size": [0.02, 0.02, 0.02]},
+                "density": 2700, "pose": {"position": [0.25, 0.0, 0.76]}}],
+        duration_s=duration_s, physics={"gravity": [0, 0, -9.81]},
+        environment=[table(size=(1.2, 0.8, 0.04), z=0.6)],
+        base={"name": "plate", "shape": {"type": "box", "size": [0.4, 0.4, 0.01]}},
+        right_hand=[{"t": 0.0, "position": [0.25, 0.0, 0.76], "grip": False},
+                    {"t": 0.1, "grip": True}, *carried])
+
+
 def test_a_part_pressed_onto_a_face_too_steep_to_hold_it_slides_down_it_as_in_closed_form():
     """A review: a plate held at 87 degrees (too steep to hold a part: its normal's upward
     part, 0.052, is under 0.1), a block let go 0.05 mm off it, gravity pressing it onto
@@ -613,17 +627,10 @@ def test_a_part_pressed_onto_a_face_too_steep_to_hold_it_slides_down_it_as_in_cl
     q = sp.quat_from_rotvec((tilt, 0.0, 0.0))
     hand = (0.0, 0.3, 1.0)
     at = sp.add(hand, sp.quat_rotate(q, (0.0, 0.15, 0.005 + 0.01 + 5e-5)))
-    doc = session_doc(
-        parts=[{"name": "block", "shape": {"type": "box", "size": [0.02, 0.02, 0.02]},
-                "density": 2700, "pose": {"position": [0.25, 0.0, 0.76]}}],
-        duration_s=1.2, physics={"gravity": [0, 0, -9.81]},
-        environment=[table(size=(1.2, 0.8, 0.04), z=0.6)],
-        base={"name": "plate", "shape": {"type": "box", "size": [0.4, 0.4, 0.01]}},
-        right_hand=[{"t": 0.0, "position": [0.25, 0.0, 0.76], "grip": False},
-                    {"t": 0.1, "grip": True},
-                    {"t": 0.4, "position": list(at), "euler_deg": [87.0, 0, 0]},
-                    {"t": 0.6, "position": list(at), "euler_deg": [87.0, 0, 0], "grip": False},
-                    {"t": 0.7, "position": [0.25, 0.0, 0.9]}])
+    doc = _block_by_a_plate(1.2, [
+        {"t": 0.4, "position": list(at), "euler_deg": [87.0, 0, 0]},
+        {"t": 0.6, "position": list(at), "euler_deg": [87.0, 0, 0], "grip": False},
+        {"t": 0.7, "position": [0.25, 0.0, 0.9]}])
     doc["tracker"]["devices"]["left_hand"] = [
         {"t": 0, "position": list(hand), "euler_deg": [87.0, 0, 0], "grip": True}]
     records = run_records(doc)
@@ -669,19 +676,11 @@ def test_a_wall_driven_into_a_falling_block_pushes_it_never_passes_into_it(gap_m
     for t, push in ((0.75, 0.002), (0.85, 0.006), (1.0, 0.02)):
         plate_at.append({"t": t, "position": [hand[0], hand[1] - push, hand[2]],
                          "euler_deg": [90, 0, 0]})
-    doc = session_doc(
-        parts=[{"name": "block", "shape": {"type": "box", "size": [0.02, 0.02, 0.02]},
-                "density": 2700, "pose": {"position": [0.25, 0.0, 0.76]}}],
-        duration_s=1.0, physics={"gravity": [0, 0, -9.81]},
-        environment=[table(size=(1.2, 0.8, 0.04), z=0.6)],
-        base={"name": "plate", "shape": {"type": "box", "size": [0.4, 0.4, 0.01]}},
-        right_hand=[{"t": 0.0, "position": [0.25, 0.0, 0.76], "grip": False},
-                    {"t": 0.1, "grip": True},
-                    {"t": 0.4, "position": [pre[0], pre[1] - 0.03, pre[2]],
-                     "euler_deg": [90, 0, 0]},
-                    {"t": 0.5, "position": list(pre), "euler_deg": [90, 0, 0]},
-                    {"t": 0.6, "position": list(at), "euler_deg": [90, 0, 0], "grip": False},
-                    {"t": 0.7, "position": [0.25, 0.0, 1.2]}])
+    doc = _block_by_a_plate(1.0, [
+        {"t": 0.4, "position": [pre[0], pre[1] - 0.03, pre[2]], "euler_deg": [90, 0, 0]},
+        {"t": 0.5, "position": list(pre), "euler_deg": [90, 0, 0]},
+        {"t": 0.6, "position": list(at), "euler_deg": [90, 0, 0], "grip": False},
+        {"t": 0.7, "position": [0.25, 0.0, 1.2]}])
     doc["tracker"]["devices"]["left_hand"] = plate_at
     records = run_records(doc)
     assert "hit_base_part" in [e.cause for r in records for e in r.events]
