@@ -693,3 +693,23 @@ def test_a_wall_driven_into_a_falling_block_pushes_it_never_passes_into_it(gap_m
         lowest = min(local.apply((sx * 0.01, sy * 0.01, sz * 0.01))[2]
                      for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)) - 0.005
         assert lowest >= -1e-4, (r.frame, block.mode, lowest)
+
+
+def test_a_passed_surface_is_met_at_a_tenth_of_its_gap_and_never_farther_than_the_tolerance():
+    """``step._met_at``: a surface a part left at a gap is met at a tenth of it; one left
+    touching (under a thousandth of the contact tolerance) is passed (0); and a gap raised
+    by a part that went far from the surface (5 mm) is met no farther than the tolerance,
+    as every other face is: at a tenth, it would have stopped 0.5 mm short of the face."""
+    from conftest import make_session
+    from vade_replay import step
+    from vade_replay.collision import CollisionWorld
+    from vade_replay.frames import TrackerFrame
+    doc = json.loads((RECORDINGS / "plane_block_wall.json").read_text())
+    for tol in (1e-4, 1e-5):
+        doc.setdefault("physics", {})["contact_tolerance"] = tol
+        scene = make_session(doc).build_scene()
+        f = step._Frame(scene, CollisionWorld(scene), TrackerFrame(0, 0, ()), 0, [])
+        assert step._met_at(f, 1.5 * tol) == pytest.approx(0.15 * tol, rel=1e-15)
+        assert step._met_at(f, 0.9e-3 * tol) == 0.0
+        assert step._met_at(f, 1.0e-3 * tol) == pytest.approx(1e-4 * tol, rel=1e-15)
+        assert step._met_at(f, 5e-3) == tol
