@@ -13,7 +13,8 @@ from types import SimpleNamespace
 from typing import Iterator, TextIO
 
 from vade_replay.errors import ConfigError
-from vade_replay.recording import Recording, ensure_writable
+from vade_replay.recording import RERUN_MAGIC, Recording, ensure_writable
+from vade_replay.session import MCAP_MAGIC
 from vade_replay.replay import (ANALYSIS_COLUMNS, VALUE_UNITS, WHAT_IF_TOLERANCE, Tolerance,
                                 _number_and_unit, analysis_rows, apply_overrides,
                                 describe_departure, miss_line, parse_tolerance, replay)
@@ -287,7 +288,7 @@ def _check_output_paths(args) -> None:
 # ``recording``, as every table vade-replay writes begins, also after a spreadsheet saved
 # it again: a byte-order mark and quotes are let through); a review's, a review (rerun's
 # magic) or an empty file.
-_OUTPUT_STARTS = {"--rerun": (b"RRF",)}
+_OUTPUT_STARTS = {"--rerun": (RERUN_MAGIC,)}
 _TABLE_STARTS = (b"recording,", b'"recording",', b"recording;", b'"recording";',
                  b"recording\t", b"recording\n", b"recording\r")
 
@@ -304,7 +305,7 @@ def _refuse_replacing_other(path: str, option: str) -> None:
     text = head[3:] if head.startswith(b"\xef\xbb\xbf") else head
     if text.startswith(_OUTPUT_STARTS.get(option, _TABLE_STARTS)):
         return
-    recording = head.startswith(b"\x89MCAP")
+    recording = head.startswith(MCAP_MAGIC)
     session = text.lstrip(b" \t\r\n").startswith((b"{", b"["))
     what = "a recording" if recording else "a JSON file (a session?)" if session \
         else "other data"

@@ -642,29 +642,17 @@ class CollisionWorld:
         return _distance(fcl.CollisionObject(self._model(part), _transform(base_from_part)),
                          self._whole())
 
-    def base_contact_normal(self, part: str, base_from_part: sp.Pose,
-                            grace: tuple[int, ...] | None = None) -> sp.Vec3 | None:
-        """Unit direction from the base's nearest point to the part's (base axes): the
-        normal of the face the part touches (of the base without the surfaces ``grace``
-        lists); None when they overlap (no nearest points)."""
-        return self.base_contact(part, base_from_part, grace)[0]
-
     def base_contact(self, part: str, base_from_part: sp.Pose,
-                     grace: tuple[int, ...] | None = None) -> tuple[sp.Vec3 | None, bool]:
-        """``base_contact_normal``, and whether it is a face's: within 30 degrees of the
-        normal of the base triangle nearest the part, not the direction from an edge or a
-        corner (a part leaving the base along a face meets the edge of another surface
-        flush with it, a seam in a wall, at directions between the two)."""
-        normal, on_face, _ = self.base_contact_at(part, base_from_part, grace)
-        return normal, on_face
-
-    def base_contact_at(self, part: str, base_from_part: sp.Pose,
-                        grace: tuple[int, ...] | None = None,
-                        only: tuple[int, ...] | None = None
-                        ) -> tuple[sp.Vec3 | None, bool, sp.Vec3]:
-        """``base_contact``, and the part's point nearest the base (base axes; where an
-        impact acts, ``step._graze``); the origin with no normal. With ``only``, of those
-        surfaces alone."""
+                     grace: tuple[int, ...] | None = None, only: tuple[int, ...] | None = None
+                     ) -> tuple[sp.Vec3 | None, bool, sp.Vec3]:
+        """The unit direction from the base's nearest point to the part's (base axes: the
+        normal of the face the part touches, of the base without the surfaces ``grace``
+        lists, or of those ``only`` lists alone; None when they overlap, no nearest points);
+        whether it is a face's: within 30 degrees of the normal of the base triangle nearest
+        the part, not the direction from an edge or a corner (a part leaving the base along
+        a face meets the edge of another surface flush with it, a seam in a wall, at
+        directions between the two); and the part's point nearest the base (base axes;
+        where a graze acts, ``step._graze``; the origin with no normal)."""
         if self._base is None:
             return None, False, sp.ZERO3
         faces = self._base_faces

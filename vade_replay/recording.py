@@ -52,6 +52,9 @@ SESSION_ATTACHMENT = "session.json"
 FILE_ATTACHMENT_PREFIX = "files/"
 CHUNK_SECONDS_NS = 10**9
 ENCODING_METADATA = "encoding"
+# How a rerun review (.rrd) begins: what a review's place may hold, and what a review given
+# for a recording is told it is.
+RERUN_MAGIC = b"RRF"
 # session.validated_digest of the attached session: a replay skips validating it again.
 VALIDATED_METADATA = "validated"
 # Written when a run stops before its end (an error, Ctrl-C): why, and how many frames.
@@ -664,7 +667,7 @@ class Recording:
         if first.removeprefix(b"\xef\xbb\xbf").lstrip()[:1] in (b"{", b"["):
             return ("not a recording: this looks like a session file (JSON); record it with "
                     "vade-record first")
-        if first.startswith(b"RRF"):
+        if first.startswith(RERUN_MAGIC):
             return ("not a recording: this is a rerun review (vade-replay --rerun writes "
                     "them); open it with `rerun`")
         if not (first.startswith(MCAP_MAGIC) or MCAP_MAGIC.startswith(first)):

@@ -564,7 +564,7 @@ def _release(f: _Frame, index: int, hand: str) -> None:
     if f.base_pose is not None and _base_path(f, cm, body.radius_about_cm) is not None:
         base_from_part = f.base_pose.inverse().compose(part.pose)
         if f.collision.distance_to_base(part.name, base_from_part) <= physics.contact_tolerance:
-            normal, _, point = f.collision.base_contact_at(part.name, base_from_part)
+            normal, _, point = f.collision.base_contact(part.name, base_from_part)
             up = _support(f, normal)
             if up is None and normal is not None:
                 up = _support_elsewhere(f, part.name, base_from_part, ())
@@ -708,7 +708,7 @@ def _fly(f: _Frame, index: int, grazed: int = 0) -> None:
     base = _base_path(f, center, reach)
     grace = None if flight.base_clear else flight.grace
     gaps = () if flight.base_clear else flight.grace_gaps
-    starts: list[float] = []
+    starts: tuple[float, ...] = ()
     if base is not None and not flight.base_clear:
         # Just off the base: what it touched as it left (the whole base, with flight_grace
         # whole_base) is no obstacle until the part has separated from it.
@@ -722,8 +722,8 @@ def _fly(f: _Frame, index: int, grazed: int = 0) -> None:
             # surface left touching (passed whole) is met once the part has been off it (a
             # review: a block let go touching a plate, which went away 0.08 mm and came
             # back, passed 9.9 mm into it).
-            starts = f.collision.surface_distances(
-                part.name, base.at_time(t_a).inverse().compose(part.pose), grace)
+            starts = tuple(f.collision.surface_distances(
+                part.name, base.at_time(t_a).inverse().compose(part.pose), grace))
             raised = tuple(max(g, d) for g, d in zip(gaps, starts))
             if raised != gaps:
                 gaps = raised
@@ -755,7 +755,7 @@ def _fly(f: _Frame, index: int, grazed: int = 0) -> None:
             if _onto_base(f, index, base_from_part, None, flown[2], free.omega_world(
                     flown[0], model=physics.free_rotation, moments=body.principal_moments)):
                 return  # came onto a constraint of its own, or its final pose
-        normal, on_face, point = f.collision.base_contact_at(part.name, base_from_part, grace)
+        normal, on_face, point = f.collision.base_contact(part.name, base_from_part, grace)
         # Leaving the base, it lands only on a face: the edge of another surface flush
         # with the one it leaves along (a seam) gives directions that would hold it up.
         up = _support(f, normal) if on_face or grace is None else None
@@ -790,7 +790,7 @@ def _fly(f: _Frame, index: int, grazed: int = 0) -> None:
                             world_from_part=pose_c, part_from_principal=body.part_from_principal,
                             principal_moments=body.principal_moments, base_clear=False,
                             grace=grace, grace_gaps=gaps,
-                            grazes=start.grazes + 1 if again else 1,
+                            after_graze=True,
                             grazed_normal=normal if normal is not None else sp.ZERO3,
                             held_ns=held_ns)
         f.parts[index] = PartState(part.name, INSPACE, pose_c, v_c, w_c, flight)
@@ -820,7 +820,7 @@ def _back_out(f: _Frame, part: str, start: free.Flight, surface: int, base: sp.P
     # part that went far from the surface would be a jump, not a back-out.)
     gap = min(gap, 2.0 * f.scene.physics.contact_tolerance)
     base_from_part = base.inverse().compose(pose)
-    normal, _, _ = f.collision.base_contact_at(part, base_from_part, None, (surface,))
+    normal, _, _ = f.collision.base_contact(part, base_from_part, None, (surface,))
     if normal is None:
         return pose, cm
     now = f.collision.surface_distance(part, base_from_part, surface)
@@ -850,7 +850,7 @@ def _met_again(f: _Frame, body: Body, start: free.Flight, t_a: int, pose_a: sp.P
     against the base, and stops turning (each graze stops only the motion into the face it
     meets, there being no contact force in flight: a pin turned in its bore was stopped by
     one side and the other at ever shorter intervals, turning on between them)."""
-    if start.grazes == 0 or start.base_clear or start.t0_ns != t_a:
+    if not start.after_graze or start.base_clear or start.t0_ns != t_a:
         return False
     angle = sp.quat_angle_between(pose_a.rotation, pose_c.rotation)
     moved = sp.norm(sp.sub(pose_c.apply(body.center_of_mass), pose_a.apply(body.center_of_mass)))
@@ -908,7 +908,7 @@ def _support_elsewhere(f: _Frame, part: str, base_from_part: sp.Pose,
         if surface in grace:
             continue
         others = tuple(sorted(set(grace) | {s for s in touched if s != surface}))
-        normal, on_face = f.collision.base_contact(part, base_from_part, others)
+        normal, on_face, _ = f.collision.base_contact(part, base_from_part, others)
         if on_face:
             up = _support(f, normal)
             if up is not None:
@@ -1023,14 +1023,15 @@ def _base_path(f: _Frame, center: sp.Vec3, reach: float) -> _BasePath | None:
 def _time_of_contact(f: _Frame, body: Body, start: free.Flight, near: tuple[int, ...],
                      base: _BasePath | None, t_a: int, t_b: int, pose_a: sp.Pose,
                      pose_b: sp.Pose, grace: tuple[int, ...] | None = None,
-                     gaps: tuple[float, ...] = (), starts: list[float] | None = None
+                     gaps: tuple[float, ...] = (), starts: tuple[float, ...] = ()
                      ) -> tuple[int, sp.Pose, int | None, int] | None:
     """First time in [t_a, t_b] at which the part comes within the contact tolerance of an
     environment object or of the (moving) base part: ``(time, pose, index, surface)``, with
     index ``None`` for the base, or ``None`` when there is no contact. With ``grace`` the
     base is taken without those surfaces (a part that has just left it: ``Flight.grace``),
-    except that each is met at a tenth of the gap in ``gaps`` it was left at (``_met_at``);
-    ``surface`` is the one met so (-1 for any other obstacle).
+    except that each is met at a tenth of the gap in ``gaps`` it was left at (``_met_at``),
+    as the part comes nearer than ``starts`` (each one's distance at ``t_a``); ``surface``
+    is the one met so (-1 for any other obstacle).
 
     Conservative advancement: at distance d no point of the part can close the gap in less
     than d / (bound on its speed relative to the obstacle), so stepping by that never passes
@@ -1045,18 +1046,17 @@ def _time_of_contact(f: _Frame, body: Body, start: free.Flight, near: tuple[int,
         omega_max = sp.norm(start.omega_world)
     else:
         omega_max = free.max_angular_speed(start.momentum_principal, body.principal_moments)
-    met = tuple((s, _met_at(f, d)) for s, d in zip(grace or (), gaps)
-                if _met_at(f, d) > 0.0) if base is not None else ()
-    met_surfaces = tuple(s for s, _ in met)
-    # Where the part is from each at the start (``starts``, of every surface in ``grace``):
-    # a surface it is within reach of is met only as the part comes nearer it than that
-    # (a pin spanning its bore, within reach of its wall on both sides, falls down it; met
-    # at once, it hung where it was).
-    if starts is None or len(starts) != len(grace or ()):
-        starts = f.collision.surface_distances(
-            body.name, cast(_BasePath, base).at_time(t_a).inverse().compose(pose_a),
-            grace or ()) if met else []
-    from_start = [d0 for d, d0 in zip(gaps, starts) if _met_at(f, d) > 0.0]
+    # Each surface of ``grace`` met short of passing: where it is met, and where the part
+    # is from it at the start (``starts``): a surface it is within reach of is met only as
+    # the part comes nearer it than that (a pin spanning its bore, within reach of its wall
+    # on both sides, falls down it; met at once, it hung where it was).
+    met: list[tuple[int, float, float]] = []
+    if base is not None:
+        for s, gap, d_0 in zip(grace or (), gaps, starts):
+            at = _met_at(f, gap)
+            if at > 0.0:
+                met.append((s, at, d_0))
+    met_surfaces = tuple(s for s, _, _ in met)
 
     def probe(t: int, pose: sp.Pose) -> tuple[float, float, int | None, int]:
         """(room, ahead, index, surface): the least of each obstacle's distance less where
@@ -1074,8 +1074,8 @@ def _time_of_contact(f: _Frame, body: Body, start: free.Flight, near: tuple[int,
                 d, which = d_base, None
         room, ahead, hit, surface = d - tol, d - 0.5 * tol, which, -1
         if met:
-            for (s, d_s), d_now, d_0 in zip(met, f.collision.surface_distances(
-                    body.name, base_from_part, met_surfaces), from_start):
+            for (s, d_s, d_0), d_now in zip(met, f.collision.surface_distances(
+                    body.name, base_from_part, met_surfaces)):
                 gap = d_now - d_s
                 if gap <= 0.0 and not d_now < d_0:
                     ahead = min(ahead, 0.0)  # within reach, not nearer: the least step

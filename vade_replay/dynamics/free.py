@@ -59,10 +59,9 @@ class Flight:
     # it has been from it at a frame's start (``step._grace``, ``step._fly``): it is met at a
     # tenth of that (one left touching, at distance 0, is passed until then).
     grace_gaps: tuple[float, ...]
-    # Whether it began where the part met a base face that could not hold it (a graze):
-    # how many times in a row it met one so, each soon after the last (``step._met_again``;
-    # 0: it did not), and the normal of the last (base axes).
-    grazes: int
+    # Whether it began where the part met a base face that could not hold it (a graze,
+    # ``step._met_again``), and that face's normal (base axes).
+    after_graze: bool
     grazed_normal: sp.Vec3
     # Since when (ns) the part has been met again and again so (0: it has not).
     held_ns: int
@@ -72,7 +71,7 @@ class Flight:
                  world_from_principal: sp.Quat, momentum_principal: sp.Vec3,
                  omega_world: sp.Vec3, base_clear: bool = True,
                  grace: tuple[int, ...] | None = None,
-                 grace_gaps: tuple[float, ...] = (), grazes: int = 0,
+                 grace_gaps: tuple[float, ...] = (), after_graze: bool = False,
                  grazed_normal: sp.Vec3 = sp.ZERO3, held_ns: int = 0) -> None:
         self.t0_ns = t0_ns
         self.cm0 = cm0
@@ -84,7 +83,7 @@ class Flight:
         self.base_clear = base_clear
         self.grace = grace
         self.grace_gaps = grace_gaps
-        self.grazes = grazes
+        self.after_graze = after_graze
         self.grazed_normal = grazed_normal
         self.held_ns = held_ns
 
@@ -93,7 +92,7 @@ def start(*, t_ns: int, cm: sp.Vec3, velocity: sp.Vec3, omega_world: sp.Vec3,
           world_from_part: sp.Pose, part_from_principal: sp.Quat,
           principal_moments: sp.Vec3, base_clear: bool = True,
           grace: tuple[int, ...] | None = None,
-          grace_gaps: tuple[float, ...] = (), grazes: int = 0,
+          grace_gaps: tuple[float, ...] = (), after_graze: bool = False,
           grazed_normal: sp.Vec3 = sp.ZERO3, held_ns: int = 0) -> Flight:
     """Flight state from a release: CM position and velocity, angular velocity, part pose."""
     world_from_principal = sp.quat_normalize(sp.quat_mul(world_from_part.rotation,
@@ -103,7 +102,7 @@ def start(*, t_ns: int, cm: sp.Vec3, velocity: sp.Vec3, omega_world: sp.Vec3,
                 principal_moments[1] * omega_principal[1],
                 principal_moments[2] * omega_principal[2])
     return Flight(t_ns, cm, velocity, t_ns, world_from_principal, momentum, omega_world,
-                  base_clear, grace, grace_gaps, grazes, grazed_normal, held_ns)
+                  base_clear, grace, grace_gaps, after_graze, grazed_normal, held_ns)
 
 
 def cm_at(flight: Flight, t_ns: int, gravity: sp.Vec3) -> tuple[sp.Vec3, sp.Vec3]:
@@ -375,7 +374,7 @@ def advance(flight: Flight, t_ns: int, *, model: str, moments: sp.Vec3, order: i
                                           flight.world_from_principal))
         return Flight(flight.t0_ns, flight.cm0, flight.v0, t_ns, q, flight.momentum_principal,
                       flight.omega_world, flight.base_clear, flight.grace,
-                      flight.grace_gaps, flight.grazes, flight.grazed_normal,
+                      flight.grace_gaps, flight.after_graze, flight.grazed_normal,
                       flight.held_ns)
     if model == "rk4":
         q, m = rotate_rk4(flight.world_from_principal, flight.momentum_principal, dt, moments,
@@ -393,7 +392,7 @@ def advance(flight: Flight, t_ns: int, *, model: str, moments: sp.Vec3, order: i
         q, m = rotate_momentum(flight.world_from_principal, flight.momentum_principal, dt,
                                moments, order=order, max_step_s=max_step_s)
     return Flight(flight.t0_ns, flight.cm0, flight.v0, t_ns, q, m, flight.omega_world,
-                  flight.base_clear, flight.grace, flight.grace_gaps, flight.grazes,
+                  flight.base_clear, flight.grace, flight.grace_gaps, flight.after_graze,
                   flight.grazed_normal, flight.held_ns)
 
 
