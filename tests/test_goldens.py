@@ -265,7 +265,7 @@ def test_a_regeneration_says_what_it_changed_in_each_golden(tmp_path, monkeypatc
     drop.write_text(json.dumps(doc))
     result = run_cli("vade-goldens", "--dir", str(tmp_path), "drop_on_table")
     assert result.returncode == 0
-    assert f"warning: {drop}: parts[0].mass: 350 kg in 128 cm^3" in result.stderr
+    assert f"warning: {drop}: parts[0].mass (part 'peg'): 350 kg in 128 cm^3" in result.stderr
 
 
 def test_a_session_that_fails_while_it_is_recorded_leaves_every_golden_as_it_was(tmp_path):

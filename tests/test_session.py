@@ -316,8 +316,8 @@ def test_a_typo_of_an_optional_shape_key_is_warned_of():
     assert make_session(doc).warnings() == []
     doc["parts"][0]["shape"]["sectons"] = 64
     (warning,) = make_session(doc).warnings()
-    assert warning == ("parts[0].shape.sectons: not a shape's field, ignored (did you mean "
-                       "'sections'?)")
+    assert warning == ("parts[0].shape.sectons (part 'sleeve'): not a shape's field, ignored "
+                       "(did you mean 'sections'?)")
     assert doc["base"]["shape"]["children"][1]["pose"]  # a child's pose is no typo
 
 
@@ -356,7 +356,7 @@ def test_one_device_in_metres_and_unlikely_densities_are_warned_of():
     assert make_session(doc).warnings() == []
     doc["parts"][0]["density"] = 7.85e-06
     (warning,) = make_session(doc).warnings()
-    assert warning.startswith("parts[0].density: 7.85e-06 kg/m^3 is no solid's")
+    assert warning.startswith("parts[0].density (part 'peg'): 7.85e-06 kg/m^3 is no solid's")
     doc["parts"][0]["density"] = 7.85
     assert len(make_session(doc).warnings()) == 1
     doc["parts"][0]["density"] = 7850
@@ -402,7 +402,8 @@ def test_a_typo_of_a_base_or_environment_key_is_warned_of():
     doc["environment"][0]["pos"] = {"position": [0, 0, 0]}
     assert make_session(doc).warnings() == [
         "base.fixd: not a field of the base, ignored (did you mean 'fixed'?)",
-        "environment[0].pos: not a field of the environment, ignored (did you mean 'pose'?)"]
+        "environment[0].pos (environment object 'table'): not a field of the environment, "
+        "ignored (did you mean 'pose'?)"]
 
 
 def test_a_metre_session_read_as_mm_is_named_even_where_its_meshes_collapse():
@@ -655,11 +656,12 @@ def test_dynamic_friction_above_static_is_warned_of():
     doc["physics"] = {}
     constraint["friction"] = {"static": 0.4, "dynamic": 0.5}
     (mate,) = make_session(doc).warnings()
-    assert mate.startswith("parts[0].assembly.constraints[0].friction: dynamic 0.5 is above "
-                           "static 0.4")
+    assert mate.startswith("parts[0].assembly.constraints[0].friction (part 'block'): "
+                           "dynamic 0.5 is above static 0.4")
     constraint["friction"] = {"dynamic": 0.4}  # its static is the physics', 0.3
     assert make_session(doc).warnings()[0].startswith(
-        "parts[0].assembly.constraints[0].friction: dynamic 0.4 is above static 0.3")
+        "parts[0].assembly.constraints[0].friction (part 'block'): dynamic 0.4 is above "
+        "static 0.3")
     constraint["friction"] = {"static": 0.4, "dynamic": 0.4}  # equal: a material may
     assert make_session(doc).warnings() == []
 
@@ -766,3 +768,60 @@ def test_a_still_hand_in_a_log_of_unaligned_devices_lets_go_at_rest():
 
     spanned, windowed = released(), released(0.0)
     assert spanned < 0.025 and windowed > 3.0 * spanned, (spanned, windowed)
+
+
+def test_an_error_or_warning_in_a_part_names_it_by_its_name(tmp_path):
+    """A newcomer's trial: "field parts[3].shape" made the user count the parts list. An
+    error in a part, an environment object or a tool names it as the session does, from
+    the schema, from building the scene, or a missing file; a warning too, where it does
+    not name it already. ``field`` stays the path (``item`` is the name)."""
+    from conftest import run_cli
+    doc = json.loads((RECORDINGS / "throw_and_catch.json").read_text())
+    pin = copy.deepcopy(doc["parts"][0])
+    pin.update(name="pin", shape={"type": "cylinder", "radius": 0.01})  # no height
+    doc["parts"].append(pin)
+    with pytest.raises(SessionError) as info:
+        make_session(doc)
+    assert (info.value.field, info.value.item) == ("parts[1].shape", "part 'pin'")
+    assert str(info.value) == ("<test>: field parts[1].shape (part 'pin'): 'height' is a "
+                               "required property")
+    path = tmp_path / "s.json"
+    path.write_text(json.dumps(doc))
+    result = run_cli("vade-record", str(path), "-o", str(tmp_path / "s.mcap"))
+    assert result.returncode == 2 and result.stderr == (
+        f"error: {path}: field parts[1].shape (part 'pin'): 'height' is a required property\n")
+    # From the scene's building (a rotation that is none), and a file it cannot read.
+    doc = json.loads((RECORDINGS / "throw_and_catch.json").read_text())
+    doc["environment"][0]["pose"]["xyzw"] = [0, 0, 0, 0]
+    with pytest.raises(SessionError) as info:
+        make_session(doc).build_scene()
+    assert (info.value.field, info.value.item) == ("environment[0].pose.xyzw",
+                                                   "environment object 'table'")
+    assert "field environment[0].pose.xyzw (environment object 'table'): " in str(info.value)
+    doc = json.loads((RECORDINGS / "throw_and_catch.json").read_text())
+    doc["parts"][0]["shape"] = {"type": "mesh", "file": "nowhere.stl"}
+    path.write_text(json.dumps(doc))
+    result = run_cli("vade-record", str(path), "-o", str(tmp_path / "s.mcap"))
+    assert result.returncode == 2 and "field parts[0].shape.file (part 'cylinder'): cannot " \
+        "read" in result.stderr
+    # A tool's.
+    doc = json.loads((RECORDINGS / "hoist_placed.json").read_text())
+    doc["tools"][0]["max_mass_kg"] = -1
+    with pytest.raises(SessionError) as info:
+        make_session(doc)
+    assert info.value.item == f"tool {doc['tools'][0]['name']!r}"
+    # A part with no name (itself the error) is named by place alone.
+    doc = json.loads((RECORDINGS / "throw_and_catch.json").read_text())
+    doc["parts"][0]["name"] = ""
+    doc["parts"][0]["density"] = -1
+    with pytest.raises(SessionError) as info:
+        make_session(doc)
+    assert info.value.item is None and "(part" not in str(info.value)
+    # A warning is named once: a line that names its part already is left as it is.
+    from vade_replay.session import name_warnings
+    doc = json.loads((RECORDINGS / "throw_and_catch.json").read_text())
+    assert name_warnings(["parts[0].mass: 50 kg is heavy", "parts[0].pose: cylinder starts "
+                          "inside", "tracker.duration_s: long", "parts[7].pose: none"], doc) \
+        == ["parts[0].mass (part 'cylinder'): 50 kg is heavy",
+            "parts[0].pose: cylinder starts inside", "tracker.duration_s: long",
+            "parts[7].pose: none"]

@@ -11,6 +11,7 @@ import hashlib
 import itertools
 import json
 import math
+import re
 from dataclasses import dataclass
 from importlib import metadata as importlib_metadata
 from importlib import resources
@@ -97,9 +98,67 @@ def _path(error: jsonschema.ValidationError, prefix: tuple = ()) -> str:
     return out or "(top level)"
 
 
+# A field in a list of named things: a user knows them by name, not by place.
+_NAMED_ITEM = re.compile(r"(parts|environment|tools)\[(\d+)\]")
+_ITEM_KIND = {"parts": "part", "environment": "environment object", "tools": "tool"}
+
+
+def _item(field: str | None, doc: object) -> tuple[str, str] | None:
+    """What ``field`` (``parts[3].shape``) is in, as (kind, name): ("part", "peg")."""
+    match = _NAMED_ITEM.match(field or "")
+    if match is None or not isinstance(doc, dict):
+        return None
+    items = doc.get(match.group(1))
+    index = int(match.group(2))
+    if not isinstance(items, list) or index >= len(items) or not isinstance(items[index], dict):
+        return None
+    name = items[index].get("name")
+    if not isinstance(name, str) or not name:
+        return None
+    return _ITEM_KIND[match.group(1)], name
+
+
+def named_item(field: str | None, doc: object) -> str | None:
+    """The part, environment object or tool that ``field`` (``parts[3].shape``) is in, by
+    the name the session gives it (``part 'peg'``), or None."""
+    item = _item(field, doc)
+    return None if item is None else f"{item[0]} {item[1]!r}"
+
+
+_WARNED_FIELD = re.compile(r"((?:parts|environment|tools)\[\d+\][\w.\[\]]*):")
+
+
+def name_warnings(lines: list[str], doc: object) -> list[str]:
+    """Warnings that begin with a field (``parts[3].mass: ...``) with the part, environment
+    object or tool it is in named after it (``named_item``) where the line does not name
+    it already."""
+    out = []
+    for line in lines:
+        match = _WARNED_FIELD.match(line)
+        item = _item(match.group(1), doc) if match else None
+        if match and item and not re.search(rf"(?<!\w){re.escape(item[1])}(?!\w)",
+                                            line[match.end():]):
+            line = f"{match.group(1)} ({item[0]} {item[1]!r}):{line[match.end():]}"
+        out.append(line)
+    return out
+
+
+def _naming(exc: VadeError, doc: object) -> VadeError:
+    """``exc`` with the part, environment object or tool its field is in named
+    (``named_item``), its message made again."""
+    if exc.item is None:
+        exc.item = named_item(exc.field, doc)
+        exc.args = (exc.describe(),)
+    return exc
+
+
 def validate(doc: object, *, file: str) -> None:
-    """Raise ``SessionError`` naming the first bad field."""
-    _first_error(_validator(), doc, file, ())
+    """Raise ``SessionError`` naming the first bad field (and the part, environment object
+    or tool it is in: ``named_item``)."""
+    try:
+        _first_error(_validator(), doc, file, ())
+    except SessionError as exc:
+        raise _naming(exc, doc) from None
 
 
 def validate_physics(block: object, *, file: str) -> None:
@@ -416,7 +475,8 @@ class Session:
         try:
             return build_scene(self.doc, self.files, file=self.source,
                                physics_defaults=self.physics_defaults)
-        except VadeError:
+        except VadeError as exc:
+            _naming(exc, self.doc)
             raise
         except Exception:
             if self.trusted:
@@ -509,7 +569,7 @@ class Session:
             out.append(f"tracker.duration_s: {end:g} s runs {end - last:g} s past the last "
                        f"keyframe (t = {last:g} s), {int(end * rate) + 1:,} frames of nothing "
                        "moving but what falls: meant less?")
-        return out
+        return name_warnings(out, self.doc)
 
     def _csv_sample_gap_s(self) -> float | None:
         """The median time between a device's samples in the first rows of a CSV log (each
@@ -584,7 +644,8 @@ def parse(raw: bytes, files: dict[str, bytes], *, source: str,
         validate(doc, file=source)
     for name, where in referenced_files(doc).items():
         if name not in files:
-            raise SessionError(f"file {name!r} is missing", file=source, field=where)
+            raise SessionError(f"file {name!r} is missing", file=source, field=where,
+                               item=named_item(where, doc))
     return Session(doc, files, source, raw, trusted)
 
 
@@ -614,5 +675,5 @@ def load(path: str | Path) -> Session:
             files[name] = target.read_bytes()
         except OSError as exc:
             raise SessionError(f"cannot read {target}: {exc.strerror}", file=str(path),
-                               field=where) from None
+                               field=where, item=named_item(where, doc)) from None
     return Session(doc, files, str(path), raw)
