@@ -608,6 +608,28 @@ def test_a_short_csv_row_and_a_wrong_header_say_what_they_hold():
     with pytest.raises(SessionError) as info:
         list(make_session(_csv_doc(), {"log.csv": renamed.encode()}).tracker_frames())
     assert info.value.message.startswith("the header lacks time (it reads t,device,x,y,z,")
+    # A row with more values than the header (a user's trial: a column inserted in the rows,
+    # not the header, was read shifted without a word); empty ones past it, a trailing
+    # comma's, are nothing.
+    longer = CSV.replace("0.100,right_hand,0,0,790,1,0,0,0,1", "0.100,right_hand,0,0,790,1,0,0,"
+                         "0,1,7")
+    with pytest.raises(SessionError) as info:
+        list(make_session(_csv_doc(), {"log.csv": longer.encode()}).tracker_frames())
+    assert (info.value.field, info.value.message) == ("line 4", "11 values where the header "
+                                                      "has 10 columns")
+    trailing = CSV.replace("0.100,right_hand,0,0,790,1,0,0,0,1", "0.100,right_hand,0,0,790,1,0,"
+                           "0,0,1,,")
+    assert len(list(make_session(_csv_doc(), {"log.csv": trailing.encode()}).tracker_frames())) \
+        == len(list(make_session(_csv_doc(), {"log.csv": CSV.encode()}).tracker_frames()))
+    # A non-finite number names its column (a user's trial: "non-finite number" alone).
+    for cell, column in (("nan", "z"), ("inf", "q0")):
+        row = ["0.100", "right_hand", "0", "0", "790", "1", "0", "0", "0", "1"]
+        row[{"z": 4, "q0": 5}[column]] = cell
+        bad = CSV.replace("0.100,right_hand,0,0,790,1,0,0,0,1", ",".join(row))
+        with pytest.raises(SessionError) as info:
+            list(make_session(_csv_doc(), {"log.csv": bad.encode()}).tracker_frames())
+        assert (info.value.field, info.value.message) == (f"line 4: {column}",
+                                                          f"non-finite number ({cell})")
 
 
 def test_a_log_stamping_its_devices_apart_is_not_taken_for_a_jumping_hand(tmp_path):
