@@ -595,6 +595,28 @@ def test_silent_no_op_sessions_are_warned_of_and_a_bom_is_read():
     assert with_bom.doc == session_mod.parse(raw, {}, source="plain.json").doc
 
 
+def test_a_tracker_key_that_does_nothing_with_its_kind_of_stream_is_warned_of():
+    """A user's trial: noise and duration_s beside a tracker log (a robustness study, a
+    trim) made the log's run without a word; csv_units beside keyframes likewise. And both
+    kinds of stream at once read as jsonschema's whole-block "is valid under each of"."""
+    doc = _csv_doc()
+    doc["tracker"].update(noise={"seed": 1, "position_std": 0.5}, duration_s=1.0)
+    warnings = make_session(doc, {"log.csv": CSV.encode()}).warnings()
+    assert [w.split(" applies to ")[0] for w in warnings] == ["tracker.duration_s",
+                                                              "tracker.noise"]
+    assert all("a tracker log (tracker.csv) is read as it is" in w for w in warnings)
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+    doc["tracker"]["csv_quaternion_order"] = "wxyz"
+    assert make_session(doc).warnings() == [
+        "tracker.csv_quaternion_order applies to a tracker log (tracker.csv): it does nothing "
+        "with keyframes"]
+    doc["tracker"]["csv"] = "log.csv"
+    with pytest.raises(SessionError) as info:
+        make_session(doc, {"log.csv": CSV.encode()})
+    assert (info.value.field, info.value.message) == (
+        "tracker", "devices and csv are both given: give one")
+
+
 def test_a_short_csv_row_and_a_wrong_header_say_what_they_hold():
     """A row cut short names its line and how many values it has against the header's
     columns (it said ``list index out of range``); a header lacking columns shows what it

@@ -192,6 +192,14 @@ def _first_error(validator, doc: object, file: str, prefix: tuple) -> None:
             # (It read "{...} should not be valid under {'required': ['xyzw', 'euler_deg']}".)
             message = (f"{' and '.join(error.validator_value['required'])} are both given: "
                        "give one")
+        if error.validator == "oneOf" and not error.context and isinstance(error.instance, dict):
+            # Valid under more than one alternative (a user's trial: a tracker with both csv
+            # and devices read "{...the whole block...} is valid under each of ...").
+            given = [schema["required"][0] for schema in error.validator_value
+                     if isinstance(schema, dict) and schema.get("required")
+                     and all(k in error.instance for k in schema["required"])]
+            if len(given) > 1:
+                message = f"{' and '.join(given)} are both given: give one"
         if error.validator == "required" and isinstance(error.instance, dict):
             # A typo of the required key ("radus" for "radius"): name the key written.
             import difflib
@@ -203,6 +211,12 @@ def _first_error(validator, doc: object, file: str, prefix: tuple) -> None:
                     message += f" (is {close[0]!r} a typo of it?)"
                     break
         raise SessionError(message, file=file, field=field)
+
+
+# A tracker block's keys that apply to keyframes alone, and to a tracker log alone
+# (``csv_between`` is warned of on its own).
+_KEYFRAMES_ONLY = ("rate_hz", "duration_s", "noise")
+_LOG_ONLY = ("csv_units", "csv_time_unit", "csv_quaternion_order")
 
 
 # Hands and the head in VR move about a metre or two from the origin: in a session in mm or
@@ -507,6 +521,15 @@ class Session:
         if "csv_between" in tracker and "csv" not in tracker:
             out.append("tracker.csv_between applies to a tracker log (tracker.csv); "
                        "keyframes are always interpolated: it does nothing here")
+        # (A user's trial: noise added to a real log for a robustness study, and duration_s
+        # to trim it, made the same run as the log alone without a word.)
+        for key in _KEYFRAMES_ONLY if "csv" in tracker else _LOG_ONLY:
+            if key in tracker:
+                out.append(f"tracker.{key} applies to "
+                           + ("keyframes (tracker.devices); a tracker log (tracker.csv) is "
+                              "read as it is, every sample at its own time: it does nothing "
+                              "here" if "csv" in tracker else
+                              "a tracker log (tracker.csv): it does nothing with keyframes"))
         devices = tracker.get("devices")
         if devices is not None and not devices:
             out.append("tracker.devices is empty: no hand, head or tool moves, so nothing is "
