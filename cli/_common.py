@@ -68,8 +68,61 @@ def going_on_without_stdout():
             sys.stdout = saved
 
 
+class _StdoutUnwritable(VadeError):
+    """Standard output that takes nothing (a full disk, ``> /dev/full``)."""
+
+
+class _CheckedStdout:
+    """Standard output whose failure to write (but a reader gone, ``StdoutOrNothing``'s) is
+    a ``VadeError``: one line and exit 2, not a traceback and exit 1, "diverged" (a
+    user's trial: ``vade-replay X > /dev/full``)."""
+
+    def __init__(self, stream) -> None:
+        self._stream = stream
+
+    def write(self, text: str) -> int:
+        try:
+            return self._stream.write(text)
+        except BrokenPipeError:
+            raise
+        except OSError as exc:
+            raise _StdoutUnwritable(f"cannot write it: {exc.strerror or exc}",
+                                    file="standard output") from None
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()
+        except BrokenPipeError:
+            raise
+        except OSError as exc:
+            raise _StdoutUnwritable(f"cannot write it: {exc.strerror or exc}",
+                                    file="standard output") from None
+
+    def __getattr__(self, name: str):
+        return getattr(self._stream, name)
+
+
 def run(main: Callable[[list[str] | None], int], argv: list[str] | None = None) -> int:
-    """Call ``main``; turn a ``VadeError`` into one line on stderr and exit code 2."""
+    """Call ``main``; turn a ``VadeError`` into one line on stderr and exit code 2. A
+    standard output or error that is closed (``>&-``: a job detached from its terminal)
+    is taken as one that takes everything and keeps nothing (a user's trial: a traceback,
+    and the study's table not written)."""
+    saved = sys.stdout, sys.stderr
+    null = None
+    if sys.stdout is None or sys.stderr is None:
+        null = open(os.devnull, "w")
+        sys.stdout = sys.stdout or null
+        sys.stderr = sys.stderr or null
+    sys.stdout = _CheckedStdout(sys.stdout)
+    try:
+        return _run(main, argv)
+    finally:
+        sys.stdout, sys.stderr = saved
+        if null is not None:
+            null.close()
+
+
+def _run(main: Callable[[list[str] | None], int], argv: list[str] | None) -> int:
     global UNDONE
     StdoutOrNothing.gone = False
     UNDONE = ""  # (a command sets its own: a run in the same process must not inherit it)

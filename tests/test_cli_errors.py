@@ -1487,3 +1487,119 @@ def test_a_hand_passing_through_the_table_is_warned_of(tmp_path):
     doc["tracker"]["devices"]["right_hand"][6]["position"] = [0.9, -0.2, 1.1]
     around = run_cli("vade-record", str(_write(tmp_path, doc)), "-o", str(tmp_path / "c.mcap"))
     assert "passes through" not in around.stderr, around.stderr
+
+
+class _FillsUp:
+    """A file that takes ``room`` bytes and then fails as a full disk does."""
+
+    def __init__(self, stream, room: int) -> None:
+        self._stream, self._room = stream, room
+
+    def write(self, data) -> int:
+        import errno
+        import os
+        if len(data) > self._room:
+            self._room = 0  # full: nothing more fits
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        self._room -= len(data)
+        return self._stream.write(data)
+
+    def flush(self) -> None:
+        self._stream.flush()
+
+    def close(self) -> None:
+        self._stream.close()
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+
+
+def test_a_full_disk_is_one_line_and_exit_2_and_keeps_what_was_written(tmp_path, monkeypatch):
+    """A user's trial: a disk filling up while a long session was recorded gave a
+    traceback and exit 1 (which means "diverged"). It is one line naming the file, exit 2,
+    and the frames written before it are kept and replay (a partial file cut short); a disk
+    full from the start leaves no file."""
+    from vade_replay import recording as recording_module
+    doc = _doc()
+    doc["tracker"]["duration_s"] = 20.0
+    session = tmp_path / "long.json"
+    session.write_text(json.dumps(doc))
+    real_open = recording_module._open_alone
+    room = {"bytes": 60_000}
+    monkeypatch.setattr(recording_module, "_open_alone",
+                        lambda path: _FillsUp(real_open(path), room["bytes"]))
+    out = tmp_path / "long.mcap"
+    result = run_cli("vade-record", str(session), "-o", str(out))
+    partial = Path(f"{out}.partial").resolve()
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    (line,) = [l for l in result.stderr.splitlines() if l.startswith("error:")]
+    assert line.startswith(f"error: {partial}: frame ") and line.endswith(
+        f": cannot write it: No space left on device (the frames written before it are kept "
+        f"in {partial}, cut short: vade-replay reads them)")
+    assert not out.exists()
+    monkeypatch.undo()
+    kept = run_cli("vade-replay", str(partial))
+    assert kept.returncode == 0 and "the recording was cut short" in kept.stderr
+    assert kept.stdout.startswith("match: ")
+    partial.unlink()
+    # Full from the start: nothing is left behind.
+    monkeypatch.setattr(recording_module, "_open_alone",
+                        lambda path: _FillsUp(real_open(path), 0))
+    result = run_cli("vade-record", str(session), "-o", str(out))
+    assert result.returncode == 2 and result.stderr.endswith(
+        f"cannot write it: No space left on device\n")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["long.json"]
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="no /dev/full here")
+def test_standard_output_that_takes_nothing_or_is_closed_is_no_traceback(tmp_path):
+    """A user's trial: ``> /dev/full`` gave a traceback and exit 1; a standard output
+    closed (``>&-``, a detached job) a traceback, exit 1 and the study's table unwritten."""
+    import subprocess
+    import sys
+    golden = RECORDINGS / "drop_on_table.mcap"
+    full = subprocess.run(f"{sys.executable} -m vade_replay.cli.replay {golden} --json "
+                          "> /dev/full", shell=True, capture_output=True, text=True)
+    assert (full.returncode, full.stderr) == (
+        2, "error: standard output: cannot write it: No space left on device\n")
+    table = tmp_path / "study.csv"
+    closed = subprocess.run(f"{sys.executable} -m vade_replay.cli.replay {golden} --csv {table}"
+                            " >&-", shell=True, capture_output=True, text=True)
+    assert (closed.returncode, closed.stderr) == (0, "")
+    assert table.read_text().startswith("recording,")
+    # A recording written to a device that takes nothing.
+    result = run_cli("vade-record", str(RECORDINGS / "drop_on_table.json"), "-o", "/dev/full")
+    assert result.returncode == 2 and result.stderr == (
+        "error: /dev/full: frame 61: cannot write it: No space left on device\n")
+
+
+def test_a_review_that_cannot_be_written_whole_leaves_the_one_before(tmp_path, monkeypatch):
+    """A user's trial: a full disk left a review cut short at its path. A review is written
+    beside its path and moved there whole: one that fails leaves what was there."""
+    from vade_replay import view
+    out = tmp_path / "run.rrd"
+    golden = str(RECORDINGS / "drop_on_table.mcap")
+    assert run_cli("vade-replay", golden, "--rerun", str(out)).returncode == 0
+    before = out.read_bytes()
+
+    def fails(rec, *args):
+        rec.flush()
+        raise view._unwritable(RuntimeError("Failed to write: No space left on device"),
+                               args[-1])
+    monkeypatch.setattr(view, "_write_runs", fails)
+    result = run_cli("vade-replay", golden, "--rerun", str(out))
+    assert result.returncode == 2 and result.stderr == (
+        f"error: {out}: cannot write the review here (Failed to write: No space left on "
+        "device)\n")
+    assert out.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.rrd"]
+    monkeypatch.undo()
+    assert run_cli("vade-replay", golden, "--rerun", str(out)).returncode == 0
+    assert out.stat().st_mode & 0o777 == 0o666 & ~_umask()
+
+
+def _umask() -> int:
+    import os
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask

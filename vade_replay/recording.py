@@ -455,6 +455,11 @@ def _names(path: Path, fd: int) -> bool:
     return (here.st_dev, here.st_ino) == (there.st_dev, there.st_ino)
 
 
+def _unwritable(exc: OSError, path: Path) -> RecordingError:
+    """A recording that cannot be written on (a full disk, a device that takes nothing)."""
+    return RecordingError(f"cannot write it: {exc.strerror or exc}", file=str(path))
+
+
 class RecordingWriter:
     """Writes one session: attachments and metadata first, then frame after frame."""
 
@@ -472,34 +477,49 @@ class RecordingWriter:
         # The data section's CRC too (the library leaves it out by default): what the
         # chunks' and attachments' own CRCs leave, the message indexes and the metadata, is
         # then checked by a replay (``Recording.crc_mismatches``).
-        self._writer = Writer(self._stream, compression=CompressionType.ZSTD,
-                              chunk_size=4 * 1024 * 1024, enable_data_crcs=True)
-        self._writer.start(profile=PROFILE, library=f"vade_replay {package_versions()['vade_replay']}")
-        self._channels: dict[str, int] = {}
-        for topic, (schema_name, schema_file) in codec.CHANNELS.items():
-            schema_id = self._writer.register_schema(
-                name=schema_name, encoding="jsonschema",
-                data=json.dumps(load_schema(schema_file)).encode())
-            self._channels[topic] = self._writer.register_channel(
-                topic=topic, message_encoding="json", schema_id=schema_id)
-        self._writer.add_attachment(0, 0, SESSION_ATTACHMENT, "application/json", session.raw)
-        for name in sorted(session.files):
-            self._writer.add_attachment(0, 0, FILE_ATTACHMENT_PREFIX + name,
-                                        "application/octet-stream", session.files[name])
-        self._writer.add_metadata("versions", package_versions())
-        self._writer.add_metadata("physics", physics_metadata(scene.physics))
-        self._writer.add_metadata("session", {"name": session.name, **(extra_metadata or {})})
-        # What the run warns of, kept at the end (``close``) for a replay to tell again.
-        self.warnings: list[str] = []
-        # How /parts and the transforms are written (codec.derived_messages): a file without
-        # this record is from before the ``changed`` encoding and lists every part.
-        self._writer.add_metadata(ENCODING_METADATA, {"parts": parts_encoding})
-        self._writer.add_metadata(VALIDATED_METADATA,
-                                  {"session": validated_digest(session.raw)})
+        try:
+            self._writer = Writer(self._stream, compression=CompressionType.ZSTD,
+                                  chunk_size=4 * 1024 * 1024, enable_data_crcs=True)
+            self._writer.start(profile=PROFILE,
+                               library=f"vade_replay {package_versions()['vade_replay']}")
+            self._channels: dict[str, int] = {}
+            for topic, (schema_name, schema_file) in codec.CHANNELS.items():
+                schema_id = self._writer.register_schema(
+                    name=schema_name, encoding="jsonschema",
+                    data=json.dumps(load_schema(schema_file)).encode())
+                self._channels[topic] = self._writer.register_channel(
+                    topic=topic, message_encoding="json", schema_id=schema_id)
+            self._writer.add_attachment(0, 0, SESSION_ATTACHMENT, "application/json",
+                                        session.raw)
+            for name in sorted(session.files):
+                self._writer.add_attachment(0, 0, FILE_ATTACHMENT_PREFIX + name,
+                                            "application/octet-stream", session.files[name])
+            self._writer.add_metadata("versions", package_versions())
+            self._writer.add_metadata("physics", physics_metadata(scene.physics))
+            self._writer.add_metadata("session", {"name": session.name,
+                                                  **(extra_metadata or {})})
+            # What the run warns of, kept at the end (``close``) for a replay to tell again.
+            self.warnings: list[str] = []
+            # How /parts and the transforms are written (codec.derived_messages): a file
+            # without this record is from before the ``changed`` encoding and lists every
+            # part.
+            self._writer.add_metadata(ENCODING_METADATA, {"parts": parts_encoding})
+            self._writer.add_metadata(VALIDATED_METADATA,
+                                      {"session": validated_digest(session.raw)})
+        except OSError as exc:
+            # (A user's trial: a full disk gave a traceback and exit 1, "diverged".) No
+            # frame is in it: a file of its own is removed, as ``discard`` does.
+            if stat.S_ISREG(os.fstat(self._stream.fileno()).st_mode):
+                self.path.unlink(missing_ok=True)
+            self._close_after_failure()
+            raise _unwritable(exc, self.path) from None
         self._encoder = codec.FrameEncoder(parts_encoding)
         self._sequence = 0
         self._last_flush_ns: int | None = None
         self.frames = 0
+        # A write failed (a full disk): frames counted here may be missing from the file,
+        # which has no summary (a replay reads it as cut short).
+        self.unfinished = False
 
     def _add(self, topic: str, time_ns: int, data: bytes) -> None:
         self._writer.add_message(self._channels[topic], log_time=time_ns, data=data,
@@ -510,17 +530,21 @@ class RecordingWriter:
                     derived: list[tuple[str, bytes]] | None = None) -> None:
         """Write a frame's tracker input and its derived messages."""
         t = record.time_ns
-        self._add(codec.TRACKER_TOPIC, t, codec.tracker_message(record.inputs))
-        if derived is None:
-            derived = self._encoder.derived_messages(record)
-        for topic, data in derived:
-            self._add(topic, t, data)
-        self.frames += 1
-        if self._last_flush_ns is None:
-            self._last_flush_ns = t
-        elif t - self._last_flush_ns >= CHUNK_SECONDS_NS:
-            self._writer.flush()
-            self._last_flush_ns = t
+        try:
+            self._add(codec.TRACKER_TOPIC, t, codec.tracker_message(record.inputs))
+            if derived is None:
+                derived = self._encoder.derived_messages(record)
+            for topic, data in derived:
+                self._add(topic, t, data)
+            self.frames += 1
+            if self._last_flush_ns is None:
+                self._last_flush_ns = t
+            elif t - self._last_flush_ns >= CHUNK_SECONDS_NS:
+                self._writer.flush()
+                self._last_flush_ns = t
+        except OSError as exc:
+            self.unfinished = True
+            raise _unwritable(exc, self.path) from None
 
     def close(self, *, complete_as: Path | None = None, stopped: str | None = None) -> None:
         """Write the summary and close; a closed file is complete and indexed. With
@@ -546,13 +570,29 @@ class RecordingWriter:
                     if exc.errno not in (errno.EINVAL, errno.EROFS):  # a pipe, a device
                         raise
             except OSError as exc:
+                self.unfinished = True
                 raise RecordingError(f"cannot finish writing it: {exc.strerror or exc}",
                                      file=str(self.path)) from None
             if fcntl is None:  # not locked; and Windows cannot move an open file
                 self._stream.close()
             complete_output(self.path, complete_as)
-        finally:
+        except BaseException:
+            self._close_after_failure()
+            raise
+        try:
             self._stream.close()
+        except OSError as exc:
+            self.unfinished = True
+            raise RecordingError(f"cannot finish writing it: {exc.strerror or exc}",
+                                 file=str(self.path)) from None
+
+    def _close_after_failure(self) -> None:
+        """Close the file where writing it failed: what the buffer still holds is lost (a
+        full disk fails its flush again), the file descriptor is not."""
+        try:
+            self._stream.close()
+        except OSError:
+            self.unfinished = True
 
     def discard(self) -> None:
         """Close and remove a file that holds no frame, removed while still locked (no run

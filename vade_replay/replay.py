@@ -2014,15 +2014,23 @@ def _kept_after(writer: RecordingWriter, target: Path | None, partial: Path,
     """A run that failed part way: its file closed, with why it stopped; the error to raise,
     saying where the frames written are kept, or None to raise ``exc`` as it is (no frame
     was written: nothing is left behind)."""
-    if writer.frames == 0 and target is not None:
-        writer.discard()
-        return None
-    writer.close(stopped=exc.describe())
-    if writer.frames == 0:
-        return None
-    kept = f"the {what}frame before it is" if writer.frames == 1 \
-        else f"the {writer.frames} {what}frames before it are"
-    exc.message += f" ({kept} kept in {partial})"
+    try:
+        if writer.frames == 0 and target is not None:
+            writer.discard()
+            return None
+        writer.close(stopped=exc.describe())
+    except RecordingError:
+        pass  # (the file could not be finished either: ``writer.unfinished``, below)
+    if writer.frames == 0 or (writer.unfinished and target is None):
+        return None  # (nothing kept; or written in place, to a device that took what it took)
+    if writer.unfinished:
+        # (A full disk: frames counted were not all written, and the file has no summary.)
+        kept = (f"the {what}frames written before it are kept in {partial}, cut short: "
+                "vade-replay reads them")
+    else:
+        kept = (f"the {what}frame before it is" if writer.frames == 1
+                else f"the {writer.frames} {what}frames before it are") + f" kept in {partial}"
+    exc.message += f" ({kept})"
     return type(exc)(exc.message, file=exc.file, field=exc.field, frame=exc.frame)
 
 

@@ -28,6 +28,22 @@ FRAME_TABLES: dict[str, tuple[tuple[str, ...], Callable[[str, FrameRecord, int],
     "events": (EVENT_COLUMNS, event_rows), "poses": (POSE_COLUMNS, pose_rows)}
 
 
+def temp_beside(target: Path) -> tuple[int, str]:
+    """A new temporary file beside ``target`` (open descriptor, path) with the mode a plain
+    ``open()`` of ``target`` would give (mkstemp's is owner-only): what is written there is
+    moved over ``target`` when whole (a table, a review)."""
+    fd, temp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".partial", dir=target.parent)
+    try:
+        mask = os.umask(0)
+        os.umask(mask)
+        os.chmod(fd, target.stat().st_mode & 0o777 if target.exists() else 0o666 & ~mask)
+    except OSError:
+        os.close(fd)
+        os.unlink(temp)
+        raise
+    return fd, temp
+
+
 class TableError(ConfigError):
     """A table could not be written (its option is the field): not the recording's fault,
     so it ends a run of several recordings rather than counting against one of them."""
@@ -53,13 +69,7 @@ class TableFile:
             if in_place(Path(path)):
                 self.stream: TextIO = open(path, "w", newline="", encoding="utf-8")
             else:
-                fd, self.temp = tempfile.mkstemp(prefix=f".{self.target.name}.",
-                                                 suffix=".partial", dir=self.target.parent)
-                # The mode a plain open() would give (mkstemp's is owner-only).
-                mask = os.umask(0)
-                os.umask(mask)
-                os.chmod(fd, self.target.stat().st_mode & 0o777 if self.target.exists()
-                         else 0o666 & ~mask)
+                fd, self.temp = temp_beside(self.target)
                 self.stream = os.fdopen(fd, "w", newline="", encoding="utf-8")
         except OSError as exc:
             raise _error(path, option, exc) from None

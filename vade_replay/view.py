@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import os
 import socket
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
@@ -35,6 +36,8 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from vade_replay.errors import ConfigError
+from vade_replay.recording import in_place
+from vade_replay.tables import temp_beside
 from vade_replay.frames import FrameRecord, PartSnapshot
 from vade_replay import spatial as sp
 
@@ -121,15 +124,46 @@ def write_review(
     # Wall-clock timelines would make two reviews of one session differ for no reason.
     rec.set_log_time_enabled(False)
     rec.set_log_tick_enabled(False)
+    # Written beside its path and moved there when whole, as the tables are (a user's trial:
+    # a full disk left a review cut short at its path, over the one there before).
+    target = Path(path).resolve()
+    staged = target
+    if not in_place(target):
+        try:
+            fd, name = temp_beside(target)
+        except OSError as exc:
+            raise _unwritable(exc, Path(path)) from None
+        os.close(fd)
+        staged = Path(name)
     try:
-        if spawn:
-            rec.spawn(connect=False)
-            rec.set_sinks(rr.GrpcSink(), rr.FileSink(str(path)))
-        else:
-            rec.save(str(path))
-    except (RuntimeError, OSError) as exc:
-        raise ConfigError(f"cannot write the review here ({str(exc).splitlines()[0]})",
-                          file=str(path)) from None
+        try:
+            if spawn:
+                rec.spawn(connect=False)
+                rec.set_sinks(rr.GrpcSink(), rr.FileSink(str(staged)))
+            else:
+                rec.save(str(staged))
+        except (RuntimeError, OSError) as exc:
+            raise _unwritable(exc, Path(path)) from None
+        counts = _write_runs(rec, scene, frames, compare_frames, label, compare_label,
+                             divergence_frame, has_compare, Path(path))
+        if staged != target:
+            os.replace(staged, target)
+    finally:
+        if staged != target:
+            staged.unlink(missing_ok=True)
+    return counts
+
+
+def _unwritable(exc: BaseException, path: Path) -> ConfigError:
+    return ConfigError(f"cannot write the review here ({str(exc).splitlines()[0]})",
+                       file=str(path))
+
+
+def _write_runs(rec: rr.RecordingStream, scene: SceneInfo, frames: Iterable[FrameRecord],
+                compare_frames: Iterable[FrameRecord] | None, label: str, compare_label: str,
+                divergence_frame: int | None, has_compare: bool, shown: Path) -> dict:
+    """``write_review``'s logging, into ``rec`` with its sinks set; the file whole when it
+    returns (``shown``: its path as given, for an error)."""
     blueprint = blueprint_from_runs(with_comparison=has_compare)
 
     def send_blueprint() -> None:
@@ -150,8 +184,14 @@ def write_review(
             on_first_frame=send_blueprint,
         )
         rec.flush()
+    except RuntimeError as exc:
+        # (rerun's writer stopping: a full disk, "File-writer thread shut down prematurely".)
+        raise _unwritable(exc, shown) from None
     finally:
-        rec.disconnect()
+        try:
+            rec.disconnect()
+        except RuntimeError as exc:
+            raise _unwritable(exc, shown) from None
     return counts
 
 
