@@ -88,7 +88,7 @@ def test_a_mass_in_grams_is_warned_of_by_the_density_it_makes(tmp_path):
     doc, path = _grams(tmp_path)
     summary = record(session_mod.load(path), tmp_path / "grams.mcap")
     (warning,) = [w for w in summary.warnings if ".mass" in w]
-    assert warning.startswith("parts[0].mass: 250 kg in 128 cm^3 is 1.95e+06 kg/m^3")
+    assert warning.startswith("parts[0].mass (part 'peg'): 250 kg in 128 cm^3 is 1.95e+06 kg/m^3")
     # Kept in the recording: a replay of it tells them again (a reviewer of a colleague's
     # file saw only "match").
     assert Recording(tmp_path / "grams.mcap").warnings == []  # (read with the frames)
