@@ -245,19 +245,38 @@ def _regenerate(folder: Path, sessions: list[Path]) -> int:
             for path, session in loaded:
                 golden = path.with_suffix(".mcap")
                 new = golden.with_name(f".{golden.name}.new")
+                # (A user's trial: an interrupted regeneration said the frames so far were
+                # "kept" in .NAME.mcap.new.partial, and the next run removed it without a
+                # word: a golden's partial take is no one's data, the session makes it again.)
+                partial = new.with_name(new.name + ".partial")
                 try:
                     summary = record(session, new)
                 except VadeError as exc:
+                    partial.unlink(missing_ok=True)
+                    kept = exc.message.find(f" kept in {partial.resolve()})")
+                    if kept > 0:  # (record's "(the N frames before it are kept in ...)")
+                        exc.message = exc.message[:exc.message.rindex(" (", 0, kept)]
                     print(f"error: {exc.describe()}", file=sys.stderr)
                     print("a session cannot be recorded: no golden was written",
                           file=sys.stderr)
                     return EXIT_UNUSABLE
+                except KeyboardInterrupt:
+                    partial.unlink(missing_ok=True)
+                    stop = KeyboardInterrupt()
+                    stop.add_note("no golden was written: the goldens are as they were")
+                    raise stop from None
                 for warning in summary.warnings:  # (kept in the golden too)
                     print(f"warning: {path}: {warning}", file=sys.stderr)
                 made.append((golden, new, f"{summary.frames} frames, {summary.transitions} "
                              "transitions"))
             for golden, new, counts in made:
                 change = changed(golden, new) if golden.is_file() else "new"
+                if change == "unchanged":
+                    # (A user's trial: a golden the same to the byte was written again, a
+                    # new file and time for tools that go by them: make, rsync, backups.)
+                    new.unlink()
+                    print(f"{golden}: {counts}; unchanged")
+                    continue
                 if change == _VERSIONS_ONLY:
                     # Only where it was made differs (the machine's kernel build, a package
                     # version): the golden is kept as it was (a developer's trial: every

@@ -234,11 +234,20 @@ def test_a_regeneration_says_what_it_changed_in_each_golden(tmp_path, monkeypatc
         "unchanged (only its versions metadata differs: kept as it was)"] * 2
     assert {p.name: p.read_bytes() for p in tmp_path.glob("*.mcap")} == before
     monkeypatch.undo()
+    stamps = {p.name: (p.stat().st_ino, p.stat().st_mtime_ns) for p in tmp_path.glob("*.mcap")}
     result = run_cli("vade-goldens", "--dir", str(tmp_path))
     assert result.returncode == 0
     assert all(line.endswith(("; unchanged", "; unchanged (only its versions metadata "
                                               "differs: kept as it was)"))
                for line in result.stdout.splitlines()), result.stdout
+    # An unchanged golden's file is left alone, not written again the same (a user's trial:
+    # a new file and time for make, rsync and backups).
+    assert {p.name: (p.stat().st_ino, p.stat().st_mtime_ns)
+            for p in tmp_path.glob("*.mcap")} == stamps
+    result = run_cli("vade-goldens", "--dir", str(tmp_path), "drop_on_table")
+    assert result.stdout.endswith("; unchanged\n")
+    assert {p.name: (p.stat().st_ino, p.stat().st_mtime_ns)
+            for p in tmp_path.glob("*.mcap")} == stamps
     wall = tmp_path / "plane_block_wall.json"
     doc = json.loads(wall.read_text())
     doc["parts"][0]["assembly"]["constraints"][0]["friction"]["dynamic"] = 0.25
@@ -265,7 +274,7 @@ def test_a_regeneration_says_what_it_changed_in_each_golden(tmp_path, monkeypatc
     drop.write_text(json.dumps(doc))
     result = run_cli("vade-goldens", "--dir", str(tmp_path), "drop_on_table")
     assert result.returncode == 0
-    assert f"warning: {drop}: parts[0].mass: 350 kg in 128 cm^3" in result.stderr
+    assert f"warning: {drop}: parts[0].mass (part 'peg'): 350 kg in 128 cm^3" in result.stderr
 
 
 def test_a_session_that_fails_while_it_is_recorded_leaves_every_golden_as_it_was(tmp_path):
@@ -288,7 +297,44 @@ def test_a_session_that_fails_while_it_is_recorded_leaves_every_golden_as_it_was
     assert result.returncode == 2 and "no golden was written" in result.stderr
     assert "Traceback" not in result.stderr
     assert {p.name: p.read_bytes() for p in tmp_path.glob("*.mcap")} == before
-    assert not list(tmp_path.glob(".*.new"))
+    assert not list(tmp_path.glob(".*.new")) and not list(tmp_path.glob(".*.partial"))
+    assert " kept in " not in result.stderr
+
+
+def test_an_interrupted_regeneration_leaves_no_partial_golden_and_says_so(tmp_path, capsys,
+                                                                          monkeypatch):
+    """A user's trial: Ctrl-C said the frames so far were kept in .NAME.mcap.new.partial,
+    and the next regeneration removed it without a word. A golden's partial take is
+    removed at once, and the line says the goldens are as they were."""
+    from cli import goldens
+    for suffix in (".json", ".mcap"):
+        shutil.copy(RECORDINGS / f"drop_on_table{suffix}", tmp_path / f"drop_on_table{suffix}")
+    before = (tmp_path / "drop_on_table.mcap").read_bytes()
+
+    def interrupted(session, out, **kwargs):
+        Path(f"{out}.partial").write_bytes(b"frames so far")  # what record leaves
+        raise KeyboardInterrupt
+    monkeypatch.setattr(goldens, "record", interrupted)
+    with pytest.raises(KeyboardInterrupt) as info:
+        goldens._regenerate(tmp_path, [tmp_path / "drop_on_table.json"])
+    assert info.value.__notes__ == ["no golden was written: the goldens are as they were"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["drop_on_table.json",
+                                                          "drop_on_table.mcap"]
+    assert (tmp_path / "drop_on_table.mcap").read_bytes() == before
+    # So is one an error stopped part way: the error does not say its frames are kept.
+    from vade_replay.errors import SessionError
+
+    def failed(session, out, **kwargs):
+        partial = Path(f"{out}.partial")
+        partial.write_bytes(b"frames so far")
+        raise SessionError(f"a bad sample (the 5 frames before it are kept in "
+                           f"{partial.resolve()})", file="s.json", frame=5)
+    monkeypatch.setattr(goldens, "record", failed)
+    assert goldens._regenerate(tmp_path, [tmp_path / "drop_on_table.json"]) == 2
+    assert capsys.readouterr().err == ("error: s.json: frame 5: a bad sample\n"
+                                       "a session cannot be recorded: no golden was written\n")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["drop_on_table.json",
+                                                          "drop_on_table.mcap"]
 
 
 def test_a_golden_whose_tracker_log_changed_names_the_log_and_takes_the_file_name(tmp_path):

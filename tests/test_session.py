@@ -316,8 +316,8 @@ def test_a_typo_of_an_optional_shape_key_is_warned_of():
     assert make_session(doc).warnings() == []
     doc["parts"][0]["shape"]["sectons"] = 64
     (warning,) = make_session(doc).warnings()
-    assert warning == ("parts[0].shape.sectons: not a shape's field, ignored (did you mean "
-                       "'sections'?)")
+    assert warning == ("parts[0].shape.sectons (part 'sleeve'): not a shape's field, ignored "
+                       "(did you mean 'sections'?)")
     assert doc["base"]["shape"]["children"][1]["pose"]  # a child's pose is no typo
 
 
@@ -356,7 +356,7 @@ def test_one_device_in_metres_and_unlikely_densities_are_warned_of():
     assert make_session(doc).warnings() == []
     doc["parts"][0]["density"] = 7.85e-06
     (warning,) = make_session(doc).warnings()
-    assert warning.startswith("parts[0].density: 7.85e-06 kg/m^3 is no solid's")
+    assert warning.startswith("parts[0].density (part 'peg'): 7.85e-06 kg/m^3 is no solid's")
     doc["parts"][0]["density"] = 7.85
     assert len(make_session(doc).warnings()) == 1
     doc["parts"][0]["density"] = 7850
@@ -402,7 +402,8 @@ def test_a_typo_of_a_base_or_environment_key_is_warned_of():
     doc["environment"][0]["pos"] = {"position": [0, 0, 0]}
     assert make_session(doc).warnings() == [
         "base.fixd: not a field of the base, ignored (did you mean 'fixed'?)",
-        "environment[0].pos: not a field of the environment, ignored (did you mean 'pose'?)"]
+        "environment[0].pos (environment object 'table'): not a field of the environment, "
+        "ignored (did you mean 'pose'?)"]
 
 
 def test_a_metre_session_read_as_mm_is_named_even_where_its_meshes_collapse():
@@ -594,6 +595,28 @@ def test_silent_no_op_sessions_are_warned_of_and_a_bom_is_read():
     assert with_bom.doc == session_mod.parse(raw, {}, source="plain.json").doc
 
 
+def test_a_tracker_key_that_does_nothing_with_its_kind_of_stream_is_warned_of():
+    """A user's trial: noise and duration_s beside a tracker log (a robustness study, a
+    trim) made the log's run without a word; csv_units beside keyframes likewise. And both
+    kinds of stream at once read as jsonschema's whole-block "is valid under each of"."""
+    doc = _csv_doc()
+    doc["tracker"].update(noise={"seed": 1, "position_std": 0.5}, duration_s=1.0)
+    warnings = make_session(doc, {"log.csv": CSV.encode()}).warnings()
+    assert [w.split(" applies to ")[0] for w in warnings] == ["tracker.duration_s",
+                                                              "tracker.noise"]
+    assert all("a tracker log (tracker.csv) is read as it is" in w for w in warnings)
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+    doc["tracker"]["csv_quaternion_order"] = "wxyz"
+    assert make_session(doc).warnings() == [
+        "tracker.csv_quaternion_order applies to a tracker log (tracker.csv): it does nothing "
+        "with keyframes"]
+    doc["tracker"]["csv"] = "log.csv"
+    with pytest.raises(SessionError) as info:
+        make_session(doc, {"log.csv": CSV.encode()})
+    assert (info.value.field, info.value.message) == (
+        "tracker", "devices and csv are both given: give one")
+
+
 def test_a_short_csv_row_and_a_wrong_header_say_what_they_hold():
     """A row cut short names its line and how many values it has against the header's
     columns (it said ``list index out of range``); a header lacking columns shows what it
@@ -607,6 +630,28 @@ def test_a_short_csv_row_and_a_wrong_header_say_what_they_hold():
     with pytest.raises(SessionError) as info:
         list(make_session(_csv_doc(), {"log.csv": renamed.encode()}).tracker_frames())
     assert info.value.message.startswith("the header lacks time (it reads t,device,x,y,z,")
+    # A row with more values than the header (a user's trial: a column inserted in the rows,
+    # not the header, was read shifted without a word); empty ones past it, a trailing
+    # comma's, are nothing.
+    longer = CSV.replace("0.100,right_hand,0,0,790,1,0,0,0,1", "0.100,right_hand,0,0,790,1,0,0,"
+                         "0,1,7")
+    with pytest.raises(SessionError) as info:
+        list(make_session(_csv_doc(), {"log.csv": longer.encode()}).tracker_frames())
+    assert (info.value.field, info.value.message) == ("line 4", "11 values where the header "
+                                                      "has 10 columns")
+    trailing = CSV.replace("0.100,right_hand,0,0,790,1,0,0,0,1", "0.100,right_hand,0,0,790,1,0,"
+                           "0,0,1,,")
+    assert len(list(make_session(_csv_doc(), {"log.csv": trailing.encode()}).tracker_frames())) \
+        == len(list(make_session(_csv_doc(), {"log.csv": CSV.encode()}).tracker_frames()))
+    # A non-finite number names its column (a user's trial: "non-finite number" alone).
+    for cell, column in (("nan", "z"), ("inf", "q0")):
+        row = ["0.100", "right_hand", "0", "0", "790", "1", "0", "0", "0", "1"]
+        row[{"z": 4, "q0": 5}[column]] = cell
+        bad = CSV.replace("0.100,right_hand,0,0,790,1,0,0,0,1", ",".join(row))
+        with pytest.raises(SessionError) as info:
+            list(make_session(_csv_doc(), {"log.csv": bad.encode()}).tracker_frames())
+        assert (info.value.field, info.value.message) == (f"line 4: {column}",
+                                                          f"non-finite number ({cell})")
 
 
 def test_a_log_stamping_its_devices_apart_is_not_taken_for_a_jumping_hand(tmp_path):
@@ -655,11 +700,12 @@ def test_dynamic_friction_above_static_is_warned_of():
     doc["physics"] = {}
     constraint["friction"] = {"static": 0.4, "dynamic": 0.5}
     (mate,) = make_session(doc).warnings()
-    assert mate.startswith("parts[0].assembly.constraints[0].friction: dynamic 0.5 is above "
-                           "static 0.4")
+    assert mate.startswith("parts[0].assembly.constraints[0].friction (part 'block'): "
+                           "dynamic 0.5 is above static 0.4")
     constraint["friction"] = {"dynamic": 0.4}  # its static is the physics', 0.3
     assert make_session(doc).warnings()[0].startswith(
-        "parts[0].assembly.constraints[0].friction: dynamic 0.4 is above static 0.3")
+        "parts[0].assembly.constraints[0].friction (part 'block'): dynamic 0.4 is above "
+        "static 0.3")
     constraint["friction"] = {"static": 0.4, "dynamic": 0.4}  # equal: a material may
     assert make_session(doc).warnings() == []
 
@@ -766,3 +812,60 @@ def test_a_still_hand_in_a_log_of_unaligned_devices_lets_go_at_rest():
 
     spanned, windowed = released(), released(0.0)
     assert spanned < 0.025 and windowed > 3.0 * spanned, (spanned, windowed)
+
+
+def test_an_error_or_warning_in_a_part_names_it_by_its_name(tmp_path):
+    """A newcomer's trial: "field parts[3].shape" made the user count the parts list. An
+    error in a part, an environment object or a tool names it as the session does, from
+    the schema, from building the scene, or a missing file; a warning too, where it does
+    not name it already. ``field`` stays the path (``item`` is the name)."""
+    from conftest import run_cli
+    doc = json.loads((RECORDINGS / "throw_and_catch.json").read_text())
+    pin = copy.deepcopy(doc["parts"][0])
+    pin.update(name="pin", shape={"type": "cylinder", "radius": 0.01})  # no height
+    doc["parts"].append(pin)
+    with pytest.raises(SessionError) as info:
+        make_session(doc)
+    assert (info.value.field, info.value.item) == ("parts[1].shape", "part 'pin'")
+    assert str(info.value) == ("<test>: field parts[1].shape (part 'pin'): 'height' is a "
+                               "required property")
+    path = tmp_path / "s.json"
+    path.write_text(json.dumps(doc))
+    result = run_cli("vade-record", str(path), "-o", str(tmp_path / "s.mcap"))
+    assert result.returncode == 2 and result.stderr == (
+        f"error: {path}: field parts[1].shape (part 'pin'): 'height' is a required property\n")
+    # From the scene's building (a rotation that is none), and a file it cannot read.
+    doc = json.loads((RECORDINGS / "throw_and_catch.json").read_text())
+    doc["environment"][0]["pose"]["xyzw"] = [0, 0, 0, 0]
+    with pytest.raises(SessionError) as info:
+        make_session(doc).build_scene()
+    assert (info.value.field, info.value.item) == ("environment[0].pose.xyzw",
+                                                   "environment object 'table'")
+    assert "field environment[0].pose.xyzw (environment object 'table'): " in str(info.value)
+    doc = json.loads((RECORDINGS / "throw_and_catch.json").read_text())
+    doc["parts"][0]["shape"] = {"type": "mesh", "file": "nowhere.stl"}
+    path.write_text(json.dumps(doc))
+    result = run_cli("vade-record", str(path), "-o", str(tmp_path / "s.mcap"))
+    assert result.returncode == 2 and "field parts[0].shape.file (part 'cylinder'): cannot " \
+        "read" in result.stderr
+    # A tool's.
+    doc = json.loads((RECORDINGS / "hoist_placed.json").read_text())
+    doc["tools"][0]["max_mass_kg"] = -1
+    with pytest.raises(SessionError) as info:
+        make_session(doc)
+    assert info.value.item == f"tool {doc['tools'][0]['name']!r}"
+    # A part with no name (itself the error) is named by place alone.
+    doc = json.loads((RECORDINGS / "throw_and_catch.json").read_text())
+    doc["parts"][0]["name"] = ""
+    doc["parts"][0]["density"] = -1
+    with pytest.raises(SessionError) as info:
+        make_session(doc)
+    assert info.value.item is None and "(part" not in str(info.value)
+    # A warning is named once: a line that names its part already is left as it is.
+    from vade_replay.session import name_warnings
+    doc = json.loads((RECORDINGS / "throw_and_catch.json").read_text())
+    assert name_warnings(["parts[0].mass: 50 kg is heavy", "parts[0].pose: cylinder starts "
+                          "inside", "tracker.duration_s: long", "parts[7].pose: none"], doc) \
+        == ["parts[0].mass (part 'cylinder'): 50 kg is heavy",
+            "parts[0].pose: cylinder starts inside", "tracker.duration_s: long",
+            "parts[7].pose: none"]

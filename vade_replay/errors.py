@@ -10,10 +10,14 @@ class VadeError(Exception):
     """Root of every error a user can cause (bad files, bad fields, bad recordings)."""
 
     def __init__(self, message: str, *, file: str | None = None, field: str | None = None,
-                 frame: int | None = None, value: object = None) -> None:
+                 frame: int | None = None, value: object = None, item: str | None = None
+                 ) -> None:
         self.message = message
         self.file = file
         self.field = field
+        # What ``field`` is in, by name, where its path names it by place (``parts[3]``):
+        # "part 'peg'" (``session.named_item``).
+        self.item = item
         self.frame = frame
         self.value = value
         super().__init__(self.describe())
@@ -26,7 +30,7 @@ class VadeError(Exception):
             # A command-line option is named as given (``-o``, ``--set``), a tracker log's
             # line as "line N", a file's field as "field NAME".
             where.append(self.field if self.field.startswith(("-", "line "))
-                         else f"field {self.field}")
+                         else f"field {self.field}" + (f" ({self.item})" if self.item else ""))
         if self.frame is not None:
             where.append(f"frame {self.frame}")
         prefix = ": ".join(where)

@@ -134,13 +134,17 @@ def _parse_time_ns(text: str, unit: str) -> int:
 
 
 def _csv_row(row: list[str], col: dict[str, int], line_no: int, *, file: str, factor: float,
-             time_unit: str, quaternion_order: str,
-             known: tuple[str, ...]) -> tuple[int, str, DeviceSample]:
+             time_unit: str, quaternion_order: str, known: tuple[str, ...],
+             width: int) -> tuple[int, str, DeviceSample]:
     """One row of a tracker log: time, device and its sample; a bad row names its line."""
     where = f"line {line_no}"
-    if len(row) < len(col) or len(row) <= max(col.values()):
-        raise SessionError(f"{len(row)} values where the header has "
-                           f"{max(col.values()) + 1} columns", file=file, field=where)
+    if len(row) < len(col) or len(row) <= max(col.values()) \
+            or (len(row) > width and any(cell.strip() for cell in row[width:])):
+        # (More values than the header names, a user's trial: a column inserted in the rows
+        # and not the header was read shifted, without a word. Empty ones past it, as a
+        # trailing comma leaves, are nothing.)
+        raise SessionError(f"{len(row)} values where the header has {width} columns",
+                           file=file, field=where)
     column = "time"
     try:
         t_ns = _parse_time_ns(row[col["time"]].strip(), time_unit)
@@ -165,8 +169,10 @@ def _csv_row(row: list[str], col: dict[str, int], line_no: int, *, file: str, fa
         raise SessionError(f"unknown device {device!r} (use {', '.join(known)}, or declare "
                            "a tool of that name under tools)", file=file,
                            field=f"{where}: device")
-    if not all(math.isfinite(v) for v in (*position, *q)):
-        raise SessionError("non-finite number", file=file, field=where)
+    for name, v in zip(("x", "y", "z", "q0", "q1", "q2", "q3"), (*position, *q)):
+        if not math.isfinite(v):
+            raise SessionError(f"non-finite number ({row[col[name]].strip()})", file=file,
+                               field=f"{where}: {name}")
     if any(abs(v) > MAX_ABS_POSITION_M for v in position):
         raise SessionError(f"position is more than {MAX_ABS_POSITION_M:g} m from the origin",
                            file=file, field=f"{where}: x, y, z")
@@ -232,7 +238,8 @@ def from_csv(data: bytes, *, file: str, units: str, time_unit: str,
             continue
         t_ns, device, sample = _csv_row(row, col, line_no, file=file, factor=factor,
                                         time_unit=time_unit,
-                                        quaternion_order=quaternion_order, known=known)
+                                        quaternion_order=quaternion_order, known=known,
+                                        width=len(header))
         if times and t_ns < times[-1]:
             # A log written a device at a time (every head row, then every hand row: a
             # researcher's trial) restarts its time at a device's first row.

@@ -41,7 +41,8 @@ from .recording import (RecordedFrame, Recording, RecordingWriter, holds_recordi
                         left_partial, package_versions, partial_output, physics_metadata)
 from .scene import (LENGTH_FIELDS, PAPER_DEFAULTS, UNIT_TO_M, Scene, even_inertia_trace,
                     physics_from_doc)
-from .session import _DENSITY_RANGE, Session, load_schema, parse, strict_json, validate_physics
+from .session import (_DENSITY_RANGE, Session, load_schema, name_warnings, parse, strict_json,
+                      validate_physics)
 from .spatial import Pose
 from .step import Stepper, beyond_end
 
@@ -1205,8 +1206,8 @@ def record(session: Session, out: str | Path, *,
     partial, target = partial_output(out)
     collision = CollisionWorld(scene)
     summary = RunSummary(session.name, parts=[p.name for p in scene.parts],
-                         warnings=session.warnings() + scene_warnings(scene, collision,
-                                                                      session.doc),
+                         warnings=session.warnings() + name_warnings(
+                             scene_warnings(scene, collision, session.doc), session.doc),
                          units=session.doc.get("units", "m"),
                          **_part_figures(scene))
     if on_warnings is not None and summary.warnings:

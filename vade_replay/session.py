@@ -11,6 +11,7 @@ import hashlib
 import itertools
 import json
 import math
+import re
 from dataclasses import dataclass
 from importlib import metadata as importlib_metadata
 from importlib import resources
@@ -97,9 +98,67 @@ def _path(error: jsonschema.ValidationError, prefix: tuple = ()) -> str:
     return out or "(top level)"
 
 
+# A field in a list of named things: a user knows them by name, not by place.
+_NAMED_ITEM = re.compile(r"(parts|environment|tools)\[(\d+)\]")
+_ITEM_KIND = {"parts": "part", "environment": "environment object", "tools": "tool"}
+
+
+def _item(field: str | None, doc: object) -> tuple[str, str] | None:
+    """What ``field`` (``parts[3].shape``) is in, as (kind, name): ("part", "peg")."""
+    match = _NAMED_ITEM.match(field or "")
+    if match is None or not isinstance(doc, dict):
+        return None
+    items = doc.get(match.group(1))
+    index = int(match.group(2))
+    if not isinstance(items, list) or index >= len(items) or not isinstance(items[index], dict):
+        return None
+    name = items[index].get("name")
+    if not isinstance(name, str) or not name:
+        return None
+    return _ITEM_KIND[match.group(1)], name
+
+
+def named_item(field: str | None, doc: object) -> str | None:
+    """The part, environment object or tool that ``field`` (``parts[3].shape``) is in, by
+    the name the session gives it (``part 'peg'``), or None."""
+    item = _item(field, doc)
+    return None if item is None else f"{item[0]} {item[1]!r}"
+
+
+_WARNED_FIELD = re.compile(r"((?:parts|environment|tools)\[\d+\][\w.\[\]]*):")
+
+
+def name_warnings(lines: list[str], doc: object) -> list[str]:
+    """Warnings that begin with a field (``parts[3].mass: ...``) with the part, environment
+    object or tool it is in named after it (``named_item``) where the line does not name
+    it already."""
+    out = []
+    for line in lines:
+        match = _WARNED_FIELD.match(line)
+        item = _item(match.group(1), doc) if match else None
+        if match and item and not re.search(rf"(?<!\w){re.escape(item[1])}(?!\w)",
+                                            line[match.end():]):
+            line = f"{match.group(1)} ({item[0]} {item[1]!r}):{line[match.end():]}"
+        out.append(line)
+    return out
+
+
+def _naming(exc: VadeError, doc: object) -> VadeError:
+    """``exc`` with the part, environment object or tool its field is in named
+    (``named_item``), its message made again."""
+    if exc.item is None:
+        exc.item = named_item(exc.field, doc)
+        exc.args = (exc.describe(),)
+    return exc
+
+
 def validate(doc: object, *, file: str) -> None:
-    """Raise ``SessionError`` naming the first bad field."""
-    _first_error(_validator(), doc, file, ())
+    """Raise ``SessionError`` naming the first bad field (and the part, environment object
+    or tool it is in: ``named_item``)."""
+    try:
+        _first_error(_validator(), doc, file, ())
+    except SessionError as exc:
+        raise _naming(exc, doc) from None
 
 
 def validate_physics(block: object, *, file: str) -> None:
@@ -133,6 +192,14 @@ def _first_error(validator, doc: object, file: str, prefix: tuple) -> None:
             # (It read "{...} should not be valid under {'required': ['xyzw', 'euler_deg']}".)
             message = (f"{' and '.join(error.validator_value['required'])} are both given: "
                        "give one")
+        if error.validator == "oneOf" and not error.context and isinstance(error.instance, dict):
+            # Valid under more than one alternative (a user's trial: a tracker with both csv
+            # and devices read "{...the whole block...} is valid under each of ...").
+            given = [schema["required"][0] for schema in error.validator_value
+                     if isinstance(schema, dict) and schema.get("required")
+                     and all(k in error.instance for k in schema["required"])]
+            if len(given) > 1:
+                message = f"{' and '.join(given)} are both given: give one"
         if error.validator == "required" and isinstance(error.instance, dict):
             # A typo of the required key ("radus" for "radius"): name the key written.
             import difflib
@@ -144,6 +211,12 @@ def _first_error(validator, doc: object, file: str, prefix: tuple) -> None:
                     message += f" (is {close[0]!r} a typo of it?)"
                     break
         raise SessionError(message, file=file, field=field)
+
+
+# A tracker block's keys that apply to keyframes alone, and to a tracker log alone
+# (``csv_between`` is warned of on its own).
+_KEYFRAMES_ONLY = ("rate_hz", "duration_s", "noise")
+_LOG_ONLY = ("csv_units", "csv_time_unit", "csv_quaternion_order")
 
 
 # Hands and the head in VR move about a metre or two from the origin: in a session in mm or
@@ -416,7 +489,8 @@ class Session:
         try:
             return build_scene(self.doc, self.files, file=self.source,
                                physics_defaults=self.physics_defaults)
-        except VadeError:
+        except VadeError as exc:
+            _naming(exc, self.doc)
             raise
         except Exception:
             if self.trusted:
@@ -447,6 +521,15 @@ class Session:
         if "csv_between" in tracker and "csv" not in tracker:
             out.append("tracker.csv_between applies to a tracker log (tracker.csv); "
                        "keyframes are always interpolated: it does nothing here")
+        # (A user's trial: noise added to a real log for a robustness study, and duration_s
+        # to trim it, made the same run as the log alone without a word.)
+        for key in _KEYFRAMES_ONLY if "csv" in tracker else _LOG_ONLY:
+            if key in tracker:
+                out.append(f"tracker.{key} applies to "
+                           + ("keyframes (tracker.devices); a tracker log (tracker.csv) is "
+                              "read as it is, every sample at its own time: it does nothing "
+                              "here" if "csv" in tracker else
+                              "a tracker log (tracker.csv): it does nothing with keyframes"))
         devices = tracker.get("devices")
         if devices is not None and not devices:
             out.append("tracker.devices is empty: no hand, head or tool moves, so nothing is "
@@ -509,7 +592,7 @@ class Session:
             out.append(f"tracker.duration_s: {end:g} s runs {end - last:g} s past the last "
                        f"keyframe (t = {last:g} s), {int(end * rate) + 1:,} frames of nothing "
                        "moving but what falls: meant less?")
-        return out
+        return name_warnings(out, self.doc)
 
     def _csv_sample_gap_s(self) -> float | None:
         """The median time between a device's samples in the first rows of a CSV log (each
@@ -584,7 +667,8 @@ def parse(raw: bytes, files: dict[str, bytes], *, source: str,
         validate(doc, file=source)
     for name, where in referenced_files(doc).items():
         if name not in files:
-            raise SessionError(f"file {name!r} is missing", file=source, field=where)
+            raise SessionError(f"file {name!r} is missing", file=source, field=where,
+                               item=named_item(where, doc))
     return Session(doc, files, source, raw, trusted)
 
 
@@ -614,5 +698,5 @@ def load(path: str | Path) -> Session:
             files[name] = target.read_bytes()
         except OSError as exc:
             raise SessionError(f"cannot read {target}: {exc.strerror}", file=str(path),
-                               field=where) from None
+                               field=where, item=named_item(where, doc)) from None
     return Session(doc, files, str(path), raw)
