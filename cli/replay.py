@@ -102,15 +102,18 @@ def _overrides(items: list[str]) -> dict[str, str]:
 
 
 def _once_each(paths: list[str]) -> list[str]:
-    """The recordings, each path once (overlapping globs, ``a.mcap ./a.mcap``; links are
-    their own names): a study's table counted one twice without a word (a researcher's
-    trial)."""
+    """The recordings, each file once (overlapping globs, ``a.mcap ./a.mcap``, a link to
+    one given too): a study's table counted one twice without a word (a researcher's
+    trial; a user's, a folder's ``latest.mcap`` linking to its last take)."""
     seen: dict[str, str] = {}
     out = []
     for path in paths:
-        key = path if _is_stdout(path) else os.path.abspath(path)
+        key = path if _is_stdout(path) else os.path.realpath(path)
         if key in seen:
-            print(f"warning: {path} is {seen[key]} again: replayed once", file=sys.stderr)
+            link = "" if _is_stdout(path) or os.path.abspath(path) == os.path.abspath(
+                seen[key]) else " (a link to it, or it to this)"
+            print(f"warning: {path} is {seen[key]} again{link}: replayed once",
+                  file=sys.stderr)
             continue
         seen[key] = path
         out.append(path)

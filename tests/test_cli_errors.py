@@ -940,13 +940,22 @@ def test_a_bad_physics_set_writes_nothing_and_says_so_once(tmp_path):
     assert table.read_bytes() == good
 
 
-def test_a_recording_given_twice_is_replayed_once():
+def test_a_recording_given_twice_is_replayed_once(tmp_path):
     golden = RECORDINGS / "drop_on_table.mcap"
     result = run_cli("vade-replay", str(golden), str(golden.parent / "." / golden.name))
     assert result.returncode == 0
     assert "is " + str(golden) + " again: replayed once" in result.stderr
     assert result.stdout.splitlines() == [
         "match: 151 frames (2.50 s), 308 derived messages identical to the recording"]
+    # Through a link too (a user's trial: a folder's latest.mcap, a link to its last take,
+    # was a second row of the study's table).
+    latest = tmp_path / "latest.mcap"
+    latest.symlink_to(golden)
+    result = run_cli("vade-replay", str(golden), str(latest), "--csv", str(tmp_path / "t.csv"))
+    assert result.returncode == 0
+    assert result.stderr == (f"warning: {latest} is {golden} again (a link to it, or it to "
+                             "this): replayed once\n")
+    assert len((tmp_path / "t.csv").read_text().splitlines()) == 2  # the header and one row
 
 
 def test_a_run_stopped_by_a_closed_standard_output_names_only_what_it_left_undone(
