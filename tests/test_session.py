@@ -617,6 +617,27 @@ def test_a_tracker_key_that_does_nothing_with_its_kind_of_stream_is_warned_of():
         "tracker", "devices and csv are both given: give one")
 
 
+def test_gravity_pointing_up_and_hand_limits_the_wrong_way_round_are_warned_of():
+    """A user's trial: gravity [0, 0, 9.8] (a sign slip) was told only as a part "still
+    falling past everything", having risen; two hands allowed less than one, nothing."""
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+    doc["physics"] = {"gravity": [0, 0, 9.8]}
+    assert make_session(doc).warnings() == [
+        "physics.gravity [0, 0, 9.8] points up: the scene's up is +z (the table under the "
+        "parts, the head above them), so parts fall upward; meant its z negative?"]
+    doc["physics"] = {"gravity": [0.5, 0, -9.8]}
+    assert make_session(doc).warnings() == []
+    doc["physics"] = {"one_hand_max_mass_kg": 0.1, "two_hand_max_mass_kg": 0.05}
+    assert make_session(doc).warnings() == [
+        "physics.two_hand_max_mass_kg (0.05 kg) is under one_hand_max_mass_kg (0.1 kg): two "
+        "hands lift nothing one hand cannot, so no part is lifted by two; swapped? (equal "
+        "says so plainly)"]
+    doc["physics"] = {"two_hand_max_mass_kg": 3.0}  # under the default one hand's, 5 kg
+    assert len(make_session(doc).warnings()) == 1
+    doc["physics"] = {"two_hand_max_mass_kg": 5.0}  # two hands turned off, plainly: no word
+    assert make_session(doc).warnings() == []
+
+
 def test_a_short_csv_row_and_a_wrong_header_say_what_they_hold():
     """A row cut short names its line and how many values it has against the header's
     columns (it said ``list index out of range``); a header lacking columns shows what it

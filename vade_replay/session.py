@@ -510,6 +510,24 @@ class Session:
             if g != 0.0 and not 1.0 <= g <= 30.0:
                 out.append(f"physics.gravity is {g:.4g} m/s^2: it is in the session's units "
                            f"({units}/s^2), so Earth's is {9.81 / UNIT_TO_M[units]:g}")
+            # (A user's trial: a sign slipped, and the only word was a part "still falling
+            # ... past everything in the scene", having risen.)
+            if float(gravity[2]) > 0.0 and float(gravity[2]) >= max(abs(float(v))
+                                                                    for v in gravity):
+                out.append(f"physics.gravity {list(gravity)} points up: the scene's up is +z "
+                           "(the table under the parts, the head above them), so parts fall "
+                           "upward; meant its z negative?")
+        given = self.doc.get("physics") or {}
+        defaults = Physics()
+        one = float(given.get("one_hand_max_mass_kg", defaults.one_hand_max_mass_kg))
+        two = float(given.get("two_hand_max_mass_kg", defaults.two_hand_max_mass_kg))
+        if 0.0 < two < one:
+            # (One hand's limit says no part is lifted by two hands; under it, most likely
+            # the two are swapped: a user's trial.)
+            out.append(f"physics.two_hand_max_mass_kg ({two:g} kg) is under "
+                       f"one_hand_max_mass_kg ({one:g} kg): two hands lift nothing one hand "
+                       "cannot, so no part is lifted by two; swapped? (equal says so "
+                       "plainly)")
         out += _unlikely_lengths(self.doc, units)
         out += _unknown_shape_keys(self.doc)
         out += _shared_constraint_names(self.doc)
