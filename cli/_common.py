@@ -13,6 +13,12 @@ from vade_replay import native
 from vade_replay.errors import ConfigError, VadeError
 
 EXIT_OK, EXIT_DIVERGED, EXIT_UNUSABLE = 0, 1, 2
+
+
+def counted(n: int, word: str) -> str:
+    """``n word``, the word plural but for one: "1 frame", "2 frames" (a user's trial read
+    "1 transitions")."""
+    return f"{n} {word}" if n == 1 else f"{n} {word}s"
 EXIT_PIPE_CLOSED = 141
 
 

@@ -19,7 +19,7 @@ from vade_replay.recording import Recording
 from vade_replay.replay import Tolerance, _first_difference, parse_tolerance, record, replay
 
 from . import _common
-from ._common import EXIT_DIVERGED, EXIT_OK, EXIT_UNUSABLE, run
+from ._common import EXIT_DIVERGED, EXIT_OK, EXIT_UNUSABLE, counted, run
 
 try:
     import fcntl
@@ -267,8 +267,8 @@ def _regenerate(folder: Path, sessions: list[Path]) -> int:
                     raise stop from None
                 for warning in summary.warnings:  # (kept in the golden too)
                     print(f"warning: {path}: {warning}", file=sys.stderr)
-                made.append((golden, new, f"{summary.frames} frames, {summary.transitions} "
-                             "transitions"))
+                made.append((golden, new, f"{counted(summary.frames, 'frame')}, "
+                             f"{counted(summary.transitions, 'transition')}"))
             for golden, new, counts in made:
                 change = changed(golden, new) if golden.is_file() else "new"
                 if change == "unchanged":

@@ -11,7 +11,7 @@ from vade_replay.errors import ConfigError, VadeError
 from vade_replay.recording import ensure_writable
 from vade_replay.replay import miss_line, record
 
-from ._common import EXIT_OK, Progress, not_standard_output, print_json, run
+from ._common import EXIT_OK, Progress, counted, not_standard_output, print_json, run
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -68,8 +68,8 @@ def _main(args: argparse.Namespace) -> int:
     if args.json:
         print_json(summary.to_dict() | {"output": str(out)})
     else:
-        print(f"recorded {summary.frames} frames ({summary.duration_s:.2f} s, "
-              f"{summary.transitions} transitions) of {session.name} to {out}")
+        print(f"recorded {counted(summary.frames, 'frame')} ({summary.duration_s:.2f} s, "
+              f"{counted(summary.transitions, 'transition')}) of {session.name} to {out}")
         for miss in summary.release_misses:
             print(miss_line(miss))
         for line in _outcome_lines(summary.to_dict()["analysis"], session.doc):

@@ -23,7 +23,7 @@ from vade_replay.tables import FRAME_TABLES, STDOUT, FrameTables, TableError, Ta
 from vade_replay.errors import VadeError
 
 from ._common import (EXIT_DIVERGED, EXIT_OK, EXIT_UNUSABLE, Progress, beyond_tolerance_text,
-                      closed_pipe, elsewhere_text, going_on_without_stdout,
+                      closed_pipe, counted, elsewhere_text, going_on_without_stdout,
                       not_standard_output, print_json, run, within_tolerance_text)
 
 # Past these (m, rad) a tolerance is warned of: round-off is ~1e-9, another machine's
@@ -615,8 +615,9 @@ def _verdict(summary, overrides: dict[str, str], *, short: bool = False,
     """The one-line result; a what-if says so, since departing is what it is for."""
     if summary.match:
         text = "match" if short else (
-            f"match: {summary.frames} frames ({summary.duration_s:.2f} s), "
-            f"{summary.messages_checked} derived messages identical to the recording")
+            f"match: {counted(summary.frames, 'frame')} ({summary.duration_s:.2f} s), "
+            f"{counted(summary.messages_checked, 'derived message')} identical to the "
+            "recording")
     elif getattr(summary, "within_tolerance", None):
         text = within_tolerance_text(summary, short=short)
         if summary.physics_changed and not short:
@@ -737,7 +738,8 @@ def _one(args, path: str, overrides: dict[str, str], outputs: dict[str, TableFil
         print(_verdict(SimpleNamespace(**summary.to_dict()), overrides, path=path),
               file=_lines)
         if args.output:
-            print(f"wrote {args.output} ({summary.frames} frames regenerated)", file=_lines)
+            print(f"wrote {args.output} ({counted(summary.frames, 'frame')} regenerated)",
+                  file=_lines)
     if "--csv" in outputs:
         _write_table(outputs["--csv"], [{**summary.to_dict(), "recording": path}])
     if args.rerun:
