@@ -5,12 +5,14 @@ from __future__ import annotations
 import json
 import os
 import select
+import signal
 import sys
+import threading
 from contextlib import contextmanager
 from typing import Callable
 
 from vade_replay import native
-from vade_replay.errors import ConfigError, VadeError
+from vade_replay.errors import ConfigError, Terminated, VadeError, raise_terminated
 
 EXIT_OK, EXIT_DIVERGED, EXIT_UNUSABLE = 0, 1, 2
 
@@ -20,6 +22,7 @@ def counted(n: int, word: str) -> str:
     "1 transitions")."""
     return f"{n} {word}" if n == 1 else f"{n} {word}s"
 EXIT_PIPE_CLOSED = 141
+EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143  # 128 + SIGINT's number, + SIGTERM's
 
 
 class StdoutOrNothing:
@@ -120,9 +123,17 @@ def run(main: Callable[[list[str] | None], int], argv: list[str] | None = None) 
         sys.stdout = sys.stdout or null
         sys.stderr = sys.stderr or null
     sys.stdout = _CheckedStdout(sys.stdout)
+    # SIGTERM (a scheduler's stop, ``timeout``) taken as Ctrl-C is (``errors.Terminated``),
+    # where it has its default action (an embedding program's handler is left alone).
+    terminate = None
+    if threading.current_thread() is threading.main_thread() \
+            and signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+        terminate = signal.signal(signal.SIGTERM, raise_terminated)
     try:
         return _run(main, argv)
     finally:
+        if terminate is not None:
+            signal.signal(signal.SIGTERM, terminate)
         sys.stdout, sys.stderr = saved
         if null is not None:
             null.close()
@@ -155,8 +166,9 @@ def _run(main: Callable[[list[str] | None], int], argv: list[str] | None) -> int
         return EXIT_UNUSABLE
     except KeyboardInterrupt as exc:
         notes = getattr(exc, "__notes__", [])
-        print("interrupted" + "".join(f"; {note}" for note in notes), file=sys.stderr)
-        return 130
+        stopped = "terminated" if isinstance(exc, Terminated) else "interrupted"
+        print(stopped + "".join(f"; {note}" for note in notes), file=sys.stderr)
+        return EXIT_TERMINATED if isinstance(exc, Terminated) else EXIT_INTERRUPTED
 
 
 def _to_devnull(stream) -> None:

@@ -260,9 +260,9 @@ def _regenerate(folder: Path, sessions: list[Path]) -> int:
                     print("a session cannot be recorded: no golden was written",
                           file=sys.stderr)
                     return EXIT_UNUSABLE
-                except KeyboardInterrupt:
+                except KeyboardInterrupt as exc:
                     partial.unlink(missing_ok=True)
-                    stop = KeyboardInterrupt()
+                    stop = type(exc)()  # (Ctrl-C, or SIGTERM: errors.Terminated)
                     stop.add_note("no golden was written: the goldens are as they were")
                     raise stop from None
                 for warning in summary.warnings:  # (kept in the golden too)

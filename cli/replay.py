@@ -438,6 +438,7 @@ def _quiet_on_interrupt() -> None:
     import signal
 
     signal.signal(signal.SIGINT, _exit_interrupted)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # (not the parent's: errors.Terminated)
 
 
 def _exit_interrupted(*_: object) -> None:

@@ -333,3 +333,45 @@ def test_a_divergence_inside_a_batch_is_reported_as_frame_by_frame(tmp_path, at)
     assert fast == slow
     assert not fast["match"] and fast["first_divergence"]["frame"] == at
     assert fast["frames"] == Recording(GOLDEN).frame_count
+
+
+@pytest.mark.parametrize("command", ["vade-record", "vade-replay"])
+def test_sigterm_is_taken_as_ctrl_c_and_ends_143(tmp_path, monkeypatch, command):
+    """A user's trial: a scheduler's stop (SIGTERM: SLURM, systemd, ``timeout``) ended a
+    recording without a word, its file cut short mid-frame. It is taken as Ctrl-C is: held
+    to the frame's end, the file closed with its frames and why it stopped, one line, and
+    exit 143 (128 + SIGTERM's number); SIGTERM's own action is put back after the run."""
+    import os
+    import signal
+
+    from conftest import run_cli
+    from vade_replay.recording import RecordingWriter
+    if signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL:
+        pytest.skip("SIGTERM has a handler of its own here")
+    add = RecordingWriter._add
+    count = 0
+
+    def adding(self, topic, time_ns, data):
+        nonlocal count
+        count += 1
+        if count == 3 * 40 + 2:  # inside a frame near the 40th
+            os.kill(os.getpid(), signal.SIGTERM)
+            for _ in range(1000):  # (the handler runs between bytecodes)
+                pass
+        add(self, topic, time_ns, data)
+    monkeypatch.setattr(RecordingWriter, "_add", adding)
+    out = tmp_path / "out.mcap"
+    args = ([str(GOLDEN.with_suffix(".json"))] if command == "vade-record"
+            else [str(GOLDEN)]) + ["-o", str(out)]
+    result = run_cli(command, *args)
+    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL
+    partial = out.with_name("out.mcap.partial").resolve()
+    assert result.returncode == 143
+    assert result.stderr.startswith("terminated; the ") and result.stderr.endswith(
+        f" frames written so far are kept in {partial}\n")
+    frames = int(result.stderr.split("the ")[1].split(" ")[0])
+    assert 30 <= frames <= 41
+    kept = Recording(partial)
+    summary = rp.replay(kept)
+    assert summary.match and summary.frames == frames
+    assert kept.stopped == "terminated"  # (read with the frames, at the file's end)

@@ -51,3 +51,14 @@ class ConfigError(VadeError):
 
 class TransitionRefused(VadeError):
     """A mode transition that the transition table does not allow or that is not built yet."""
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (a scheduler's stop, ``timeout``, ``kill``), taken as Ctrl-C is: the file
+    being written closed after a whole frame, its frames kept, one line; exit 143 (a
+    user's trial: a study run by a scheduler stopped without a word, its file cut short)."""
+
+
+def raise_terminated(signum: int, frame: object) -> None:
+    """SIGTERM's handler while a command runs (``cli._common.run``)."""
+    raise Terminated

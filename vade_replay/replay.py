@@ -34,7 +34,8 @@ from .analysis import SessionAnalysis, compare
 from .arrays import dots, norms, posed_points
 from .collision import SKIP_COAXIAL, SKIP_COPLANAR, CollisionWorld
 from .dynamics import onbase
-from .errors import ConfigError, RecordingError, SessionError, VadeError
+from .errors import (ConfigError, RecordingError, SessionError, Terminated, VadeError,
+                     raise_terminated)
 from .frames import FrameRecord, TrackerFrame
 from .modes import Cause, Mode
 from .recording import (RecordedFrame, Recording, RecordingWriter, holds_recording, in_place,
@@ -109,30 +110,35 @@ class FrameBoundaryInterrupts:
     SIGINT has Python's own handler (an embedding program's is left alone)."""
 
     def __init__(self) -> None:
-        self.pending = False
-        self._previous = None
+        # The interrupt held off (KeyboardInterrupt, or Terminated for SIGTERM), or None.
+        self.pending: type[KeyboardInterrupt] | None = None
+        self._previous: dict[int, object] = {}
 
     def __enter__(self) -> "FrameBoundaryInterrupts":
-        if threading.current_thread() is threading.main_thread() \
-                and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-            self._previous = signal.signal(signal.SIGINT, self._held)
+        if threading.current_thread() is threading.main_thread():
+            # SIGTERM too where a command takes it as Ctrl-C (``errors.raise_terminated``).
+            for signum, ours in ((signal.SIGINT, signal.default_int_handler),
+                                 (signal.SIGTERM, raise_terminated)):
+                if signal.getsignal(signum) is ours:
+                    self._previous[signum] = signal.signal(signum, self._held)
         return self
 
     def _held(self, signum, frame) -> None:
+        kind = Terminated if signum == signal.SIGTERM else KeyboardInterrupt
         if self.pending:
-            raise KeyboardInterrupt  # asked twice: at once
-        self.pending = True
+            raise kind  # asked twice: at once
+        self.pending = kind
 
     def check(self) -> None:
         """At the end of a frame: the interrupt held off, if one came."""
         if self.pending:
-            self.pending = False
-            raise KeyboardInterrupt
+            kind, self.pending = self.pending, None
+            raise kind
 
     def __exit__(self, *exc) -> None:
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
-            self._previous = None
+        for signum, previous in self._previous.items():
+            signal.signal(signum, previous)  # type: ignore[arg-type]
+        self._previous = {}
 
 
 @dataclass
@@ -1267,7 +1273,7 @@ def record(session: Session, out: str | Path, *,
             summary.warnings += fallen_past_everything(scene, record_, first_time)
         writer.close(complete_as=target)
     if interrupts.pending:
-        raise _interrupted_when_complete(target or partial)
+        raise _interrupted_when_complete(target or partial, interrupts.pending)
     summary.counters = dict(collision.stats)
     return summary
 
@@ -2034,16 +2040,20 @@ def _kept_after(writer: RecordingWriter, target: Path | None, partial: Path,
     return type(exc)(exc.message, file=exc.file, field=exc.field, frame=exc.frame)
 
 
-def _interrupted_when_complete(path: Path) -> KeyboardInterrupt:
-    """A Ctrl-C that came after the last frame, while the file was being finished: the
-    run stops there (a study's loop of runs with it), its file complete."""
-    stop = KeyboardInterrupt()
+def _interrupted_when_complete(path: Path, kind: type[KeyboardInterrupt] = KeyboardInterrupt
+                               ) -> KeyboardInterrupt:
+    """A Ctrl-C (or SIGTERM: ``kind``) that came after the last frame, while the file was
+    being finished: the run stops there (a study's loop of runs with it), its file
+    complete."""
+    stop = kind()
     stop.add_note(f"the run had reached its end: {path} is complete")
     return stop
 
 
 def _why_stopped(exc: BaseException) -> str:
     """What a recording that stopped early keeps as its reason (``STOPPED_METADATA``)."""
+    if isinstance(exc, Terminated):
+        return "terminated"
     if isinstance(exc, KeyboardInterrupt):
         return "interrupted"
     return f"{type(exc).__name__}: {exc}"[:500]
@@ -2417,7 +2427,7 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
                                                 if recording.truncated else None)
                 writer.close(complete_as=target, stopped=stopped)
     if interrupts is not None and interrupts.pending and summary.frames:
-        raise _interrupted_when_complete(target or partial)
+        raise _interrupted_when_complete(target or partial, interrupts.pending)
     if summary.frames == 0:
         raise VadeError("recording holds no frames", file=str(recording.path))
     if applied and previous is not None and first_time is not None:
