@@ -684,8 +684,12 @@ def _departure_text(summary, short: bool, *, since: bool = False) -> str:
     if not largest:
         return ""
     when = " since" if since else ""
+    moved = any(far["distance_m"] or far["angle_rad"] for far in largest.values())
     if not short:
-        return f"\nlargest departure{when}: " + describe_departure(largest)
+        # (A user's trial: "largest departure: peg none" where a what-if moved no part and
+        # changed only the events, a refused grab; the study's line said "no part departed".)
+        return (f"\nlargest departure{when}: " + describe_departure(largest) if moved
+                else f"\nno part departed{when} (what differs is not where a part is)")
     name, far = max(largest.items(), key=lambda item: (item[1]["distance_m"],
                                                         item[1]["angle_rad"]))
     return (f"; largest departure{when} {far['distance_m']:.3g} m, {far['angle_rad']:.3g} rad "

@@ -1615,3 +1615,21 @@ def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
     return mask
+
+
+def test_a_what_if_that_moved_no_part_says_so_in_words():
+    """A user's trial: "largest departure: peg none" where a what-if changed only the
+    events; the study's line said "no part departed". Both say it in words now."""
+    from types import SimpleNamespace
+
+    from vade_replay.cli.replay import _departure_text
+    none = {"peg": {"distance_m": 0.0, "angle_rad": 0.0, "distance_frame": None,
+                    "angle_frame": None}}
+    moved = {**none, "pin": {"distance_m": 0.002, "angle_rad": 0.0, "distance_frame": 7,
+                             "angle_frame": None}}
+    assert _departure_text(SimpleNamespace(largest_departure=none), short=False) == (
+        "\nno part departed (what differs is not where a part is)")
+    assert _departure_text(SimpleNamespace(largest_departure=none), short=True) == (
+        "; no part departed")
+    assert _departure_text(SimpleNamespace(largest_departure=moved), short=False) == (
+        "\nlargest departure: peg none; pin 0.002 m (frame 7)")

@@ -890,3 +890,14 @@ def test_an_error_or_warning_in_a_part_names_it_by_its_name(tmp_path):
         == ["parts[0].mass (part 'cylinder'): 50 kg is heavy",
             "parts[0].pose: cylinder starts inside", "tracker.duration_s: long",
             "parts[7].pose: none"]
+
+
+def test_a_schema_error_spells_true_false_and_null_as_json_does():
+    """A user's trial: ``--set physics.gravity_scale_free=true`` read "True is not of type
+    'number'", Python's spelling, not what was written."""
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+    for value, spelled in ((True, "true"), (None, "null")):
+        doc["parts"][0]["density"] = value
+        with pytest.raises(SessionError) as info:
+            make_session(doc)
+        assert info.value.message == f"{spelled} is not of type 'number'"

@@ -187,6 +187,11 @@ def _first_error(validator, doc: object, file: str, prefix: tuple) -> None:
                 raise SessionError(f"unknown field {extra[0]!r}{hint}; allowed: "
                                    f"{', '.join(known)}", file=file, field=field)
         message = error.message
+        if isinstance(error.instance, bool) or error.instance is None:
+            # The value as the user wrote it, JSON's true/false/null, not Python's repr (a
+            # user's trial: "--set physics.gravity_scale_free=true" read "True is not of
+            # type 'number'").
+            message = message.replace(repr(error.instance), json.dumps(error.instance), 1)
         if error.validator == "not" and isinstance(error.validator_value, dict) \
                 and list(error.validator_value) == ["required"]:
             # (It read "{...} should not be valid under {'required': ['xyzw', 'euler_deg']}".)
