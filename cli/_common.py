@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import select
+import shlex
 import signal
 import sys
 import threading
@@ -293,4 +294,4 @@ def elsewhere_text(summary, path: str, *, short: bool) -> str:
     listed = "; ".join(f"{name} {change['recorded']!r} there, {change['here']!r} here"
                        for name, change in changed.items())
     return (f"\nnote: recorded elsewhere ({listed}), where round-off may differ; to tell it "
-            f"from a changed session: vade-replay {path} --tolerance 1e-9")
+            f"from a changed session: vade-replay {shlex.quote(path)} --tolerance 1e-9")

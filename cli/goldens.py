@@ -12,6 +12,7 @@ import itertools
 import os
 import sys
 from pathlib import Path
+from shlex import quote
 
 from vade_replay import session as session_mod
 from vade_replay.errors import ConfigError, VadeError
@@ -76,12 +77,13 @@ def _check(path: Path, golden: Path, tolerance: Tolerance | None = None) -> tupl
         what = path if not changed.startswith("file ") else \
             f"{changed.split()[1]} (named by {path})"
         return "stale", (f"STALE: {what} changed since its golden was made ({changed}); "
-                         f"regenerate it with vade-goldens --dir {path.parent} {path.stem}")
+                         f"regenerate it with vade-goldens --dir {quote(str(path.parent))} "
+                         f"{quote(path.stem)}")
     summary = replay(recording, tolerance=tolerance)
     if summary.truncated:
         raise VadeError(f"cut short (a crash while it was written): it holds {summary.frames} "
                         f"frames of its session; regenerate it with vade-goldens --dir "
-                        f"{path.parent} {path.stem}", file=str(golden))
+                        f"{quote(str(path.parent))} {quote(path.stem)}", file=str(golden))
     if summary.match:
         return "match", "match"
     if summary.within_tolerance:
@@ -95,7 +97,7 @@ def _check(path: Path, golden: Path, tolerance: Tolerance | None = None) -> tupl
     status += _common.elsewhere_text(summary, str(golden), short=True)
     if summary.physics_changed:
         status += (f" (recorded with other physics defaults: "
-                   f"{', '.join(summary.physics_changed)}; vade-replay {golden} --as-recorded "
+                   f"{', '.join(summary.physics_changed)}; vade-replay {quote(str(golden))} --as-recorded "
                    "replays it with them; if the change is meant, re-record with vade-goldens)")
     return "diverged", status
 
@@ -203,7 +205,7 @@ def main(argv: list[str] | None = None) -> int:
         except VadeError as exc:
             # One golden (or its session) missing, damaged or cut short: named, and the
             # others still checked.
-            hint = (f" (record it with vade-goldens --dir {folder} {path.stem})"
+            hint = (f" (record it with vade-goldens --dir {quote(str(folder))} {quote(path.stem)})"
                     if not golden.exists() and exc.file == str(golden) else "")
             print(f"error: {exc.describe()}{hint}", file=sys.stderr)
             counts["unusable"] += 1

@@ -9,6 +9,7 @@ import shutil
 import tempfile
 import sys
 from pathlib import Path
+from shlex import quote
 from types import SimpleNamespace
 from typing import Iterator, TextIO
 
@@ -631,7 +632,7 @@ def _verdict(summary, overrides: dict[str, str], *, short: bool = False,
             text += elsewhere_text(summary, path, short=short)
         if summary.physics_changed:
             text += (f" (made with other physics defaults: {', '.join(summary.physics_changed)};"
-                     f" vade-replay {path} --as-recorded replays it with them)" if short
+                     f" vade-replay {quote(path)} --as-recorded replays it with them)" if short
                      else "\n" + _physics_note(summary.physics_changed, path))
         if not overrides:
             text += _departure_text(summary, short, since=True)
@@ -706,7 +707,7 @@ def _physics_note(changes: dict, path: str, *, what_if: bool = False) -> str:
     text = f"note: this recording was made with other physics defaults ({listed})"
     if what_if:
         return text + "; to make this what-if of the physics it was made with: add --as-recorded"
-    return text + f"; to replay it as it was made: vade-replay {path} --as-recorded"
+    return text + f"; to replay it as it was made: vade-replay {quote(path)} --as-recorded"
 
 
 def _one(args, path: str, overrides: dict[str, str], outputs: dict[str, TableFile]) -> int:
@@ -761,7 +762,7 @@ def _one(args, path: str, overrides: dict[str, str], outputs: dict[str, TableFil
                                         as_recorded=args.as_recorded)
         if not args.json:
             print(f"review: {args.rerun} ({counts['frames']} frames; open with "
-                  f"`rerun {args.rerun}`)", file=_lines)
+                  f"`rerun {quote(args.rerun)}`)", file=_lines)
     if summary.match or overrides or summary.within_tolerance:
         return EXIT_OK
     return EXIT_DIVERGED

@@ -1633,3 +1633,21 @@ def test_a_what_if_that_moved_no_part_says_so_in_words():
         "; no part departed")
     assert _departure_text(SimpleNamespace(largest_departure=moved), short=False) == (
         "\nlargest departure: peg none; pin 0.002 m (frame 7)")
+
+
+def test_a_suggested_command_quotes_a_path_with_a_space(tmp_path):
+    """A user's trial: "open with `rerun sp ace/r.rrd`" failed when pasted (a study folder
+    synced from Windows has spaces). The paths in a suggested command are quoted for the
+    shell; a plain one is left as it is."""
+    import shutil
+    folder = tmp_path / "sp ace"
+    folder.mkdir()
+    shutil.copy(RECORDINGS / "drop_on_table.mcap", folder / "r ü.mcap")
+    review = folder / "r ü.rrd"
+    result = run_cli("vade-replay", str(folder / "r ü.mcap"), "--rerun", str(review))
+    assert result.returncode == 0
+    assert f"open with `rerun '{review}'`" in result.stderr + result.stdout
+    plain = tmp_path / "plain.rrd"
+    result = run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"), "--rerun",
+                     str(plain))
+    assert f"open with `rerun {plain}`" in result.stderr + result.stdout

@@ -18,6 +18,7 @@ import json
 import math
 import operator
 import re
+import shlex
 import signal
 import sys
 import threading
@@ -2440,13 +2441,15 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
             "the file is damaged after its last frame (its summary or footer: reading "
             f"stopped at byte {recording.end_damaged} of {recording.path.stat().st_size}): "
             "every frame is whole and was replayed, but other MCAP tools may refuse it; "
-            f"vade-replay {recording.path} -o WHOLE.mcap writes it again whole")
+            f"vade-replay {shlex.quote(str(recording.path))} -o WHOLE.mcap writes it again "
+            "whole")
     elif recording.crc_mismatches:
         summary.warnings.append(
             f"the file is damaged: the CRC-32 of {' and of '.join(recording.crc_mismatches)} "
             "does not match its bytes; every frame and the stored session are whole (their "
             "own CRCs match) and were replayed, but other MCAP tools may read it wrong; "
-            f"vade-replay {recording.path} -o WHOLE.mcap writes it again whole")
+            f"vade-replay {shlex.quote(str(recording.path))} -o WHOLE.mcap writes it again "
+            "whole")
     elif recording.end_lost:
         summary.warnings.append(
             "the file ends after its last frame, short of its end (its summary, footer or "
