@@ -1651,3 +1651,28 @@ def test_a_suggested_command_quotes_a_path_with_a_space(tmp_path):
     result = run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"), "--rerun",
                      str(plain))
     assert f"open with `rerun {plain}`" in result.stderr + result.stdout
+
+
+def test_a_flipped_bit_in_a_record_s_text_or_a_name_reads_as_damage(tmp_path):
+    """A user's trial, a bit flipped at every 97th byte of a recording: a metadata record's
+    text no longer UTF-8 read "not a readable MCAP file ('utf-8' codec ...)", and the parts
+    encoding's name "unknown parts encoding 'chanfed' (this version reads ...)", where
+    every other damage says damaged."""
+    data = bytearray((RECORDINGS / "drop_on_table.mcap").read_bytes())
+    at = data.index(b"platform") + 1  # the versions metadata's
+    data[at] ^= 0x80  # no longer UTF-8
+    damaged = tmp_path / "schema.mcap"
+    damaged.write_bytes(bytes(data))
+    result = run_cli("vade-replay", str(damaged))
+    assert result.returncode == 2 and result.stderr.startswith(
+        f"error: {damaged}: damaged near its start: a record there cannot be read ('utf-8' "
+        "codec can't decode")
+    data = bytearray((RECORDINGS / "drop_on_table.mcap").read_bytes())
+    at = data.index(b"changed")
+    data[at + 3] ^= 0x01  # "chaoged"
+    damaged = tmp_path / "name.mcap"
+    damaged.write_bytes(bytes(data))
+    result = run_cli("vade-replay", str(damaged))
+    assert result.returncode == 2 and result.stderr == (
+        f"error: {damaged}: field metadata encoding.parts: unknown parts encoding 'chaoged': "
+        "damaged, or written by a newer version (this version reads full, changed)\n")

@@ -678,8 +678,10 @@ class Recording:
         self.parts_encoding = self.metadata.get(ENCODING_METADATA, {}).get(
             "parts", codec.PARTS_FULL)
         if self.parts_encoding not in codec.PARTS_ENCODINGS:
-            raise RecordingError(f"unknown parts encoding {self.parts_encoding!r} (this version "
-                                 f"reads {', '.join(codec.PARTS_ENCODINGS)})",
+            # (A byte of it damaged reads as a name no version wrote: a user's trial.)
+            raise RecordingError(f"unknown parts encoding {self.parts_encoding!r}: damaged, or "
+                                 "written by a newer version (this version reads "
+                                 f"{', '.join(codec.PARTS_ENCODINGS)})",
                                  file=str(self.path), field="metadata encoding.parts")
 
     def _ends_as_written(self) -> bool:
@@ -728,6 +730,12 @@ class Recording:
         if whole and isinstance(exc, (MemoryError, OverflowError, RecordLengthLimitExceeded)):
             return (f"damaged near its start: a record there claims a length no file of "
                     f"{size} bytes has ({str(exc) or type(exc).__name__})")
+        if whole:
+            # (A user's trial of one flipped bit a file: a record's text that is no longer
+            # UTF-8 read "not a readable MCAP file", where every other damage says damaged.)
+            return (f"damaged near its start: a record there cannot be read "
+                    f"({str(exc) or type(exc).__name__}; the file itself ends as a whole "
+                    "recording does)")
         return f"not a readable MCAP file ({str(exc) or type(exc).__name__})"
 
     @cached_property
