@@ -59,6 +59,12 @@ def test_review_loads_in_the_web_viewer(viewer_available, tmp_path):
     # Not blank: many distinct colours, and the 3D view (upper left) is not one flat colour.
     assert len(np.unique(pixels.reshape(-1, pixels.shape[2]), axis=0)) > 200
     assert pixels[100:500, 50:900].std() > 10
+    # Ingested whole, and drawn so: the part-state lanes (left, under the 3D view) are
+    # coloured (INHAND, ONBASESLIDE, ...). A user's trial: 3 PNGs in 7 showed a review half
+    # ingested, its lanes one grey STATIC block (no pixel of colour there) and no events,
+    # the viewer not asked to repaint after the data came (``screenshot``'s settling loop).
+    lanes = pixels[570:760, 0:955, :3].astype(int)
+    assert ((lanes.max(axis=2) - lanes.min(axis=2)) > 60).sum() > 2000
     if target:
         shutil.copyfile(png, target)
 
