@@ -380,3 +380,28 @@ def test_a_folder_s_session_without_a_golden_is_named_by_its_own_fault(tmp_path)
     assert f"vade-goldens --check --dir {tmp_path} good)" in as_file.stderr
     remake = run_cli("vade-goldens", "--dir", str(tmp_path / "good.json"))
     assert f"(vade-goldens --dir {tmp_path} good)" in remake.stderr
+
+
+def test_a_golden_without_its_session_is_named_not_skipped(tmp_path):
+    """A user's trial: a golden whose session file was renamed or deleted was dropped from
+    ``--check`` without a word (a regression test fewer, CI green). It is replayed on its
+    own session, named as held to none, and the check exits 1, as for a stale one; a
+    regeneration names it as not regenerated."""
+    for suffix in (".json", ".mcap"):
+        shutil.copy(RECORDINGS / f"drop_on_table{suffix}", tmp_path / f"drop_on_table{suffix}")
+    shutil.copy(RECORDINGS / "plane_block_wall.mcap", tmp_path / "renamed.mcap")
+    result = run_cli("vade-goldens", "--check", "--dir", str(tmp_path))
+    assert result.returncode == 1
+    assert result.stdout.splitlines() == [
+        f"{tmp_path / 'drop_on_table.mcap'}: match",
+        f"{tmp_path / 'renamed.mcap'}: NO SESSION: no renamed.json beside it (renamed or "
+        "deleted?), so it is not held to one; its own session replays: match",
+        "2 goldens: 1 match, 0 diverged, 0 stale, 1 without their session, 0 could not be "
+        "replayed"]
+    # Named alone, the others are not asked after.
+    assert run_cli("vade-goldens", "--check", "--dir", str(tmp_path),
+                   "drop_on_table").returncode == 0
+    result = run_cli("vade-goldens", "--dir", str(tmp_path))
+    assert result.returncode == 0 and result.stderr == (
+        f"warning: {tmp_path / 'renamed.mcap'}: no session renamed.json beside it (renamed "
+        "or deleted?): not regenerated\n")
