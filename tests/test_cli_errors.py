@@ -1676,3 +1676,22 @@ def test_a_flipped_bit_in_a_record_s_text_or_a_name_reads_as_damage(tmp_path):
     assert result.returncode == 2 and result.stderr == (
         f"error: {damaged}: field metadata encoding.parts: unknown parts encoding 'chaoged': "
         "damaged, or written by a newer version (this version reads full, changed)\n")
+
+
+def test_a_device_or_pipe_given_as_a_recording_is_named_so_and_no_pipe_output_waits(tmp_path):
+    """A user's trial: /dev/null and a named pipe given to replay read "no such file"
+    (they exist); ``-o`` a named pipe with no reader blocked for ever in its open."""
+    import os
+    fifo = tmp_path / "fifo.mcap"
+    os.mkfifo(fifo)
+    for given in (os.devnull, str(fifo)):
+        result = run_cli("vade-replay", given)
+        assert result.returncode == 2 and result.stderr == (
+            f"error: {given}: not a file (a device or a pipe): a recording is read from its "
+            "file\n")
+    refused = (f"error: {fifo}: cannot write a recording to a pipe: an MCAP file is written "
+               "with offsets into it; give a file\n")
+    result = run_cli("vade-record", str(RECORDINGS / "drop_on_table.json"), "-o", str(fifo))
+    assert (result.returncode, result.stderr) == (2, refused)
+    result = run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"), "-o", str(fifo))
+    assert (result.returncode, result.stderr) == (2, refused)

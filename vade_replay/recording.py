@@ -388,6 +388,10 @@ def complete_output(partial: Path, target: Path | None) -> None:
                              f"written is in {partial}", file=str(target)) from None
 
 
+_PIPE_REFUSED = ("cannot write a recording to a pipe: an MCAP file is written with offsets "
+                 "into it; give a file")
+
+
 def _open_alone(path: Path):
     """``open(path, "wb")``, but a regular file is first locked (fcntl), without truncating
     it: a second run writing the same ``.partial`` (two ``vade-record -o X`` at once) is
@@ -396,6 +400,12 @@ def _open_alone(path: Path):
     moved it to its output between the open and the lock: then it is opened again). A pipe
     or device is not locked, nor anything where fcntl is missing (Windows) or the file
     system refuses locks (an NFS mount without lockd). The lock goes with the closing."""
+    try:
+        if stat.S_ISFIFO(os.stat(path).st_mode):
+            # (Opened, a pipe with no reader blocks: a user's trial waited on it for ever.)
+            raise RecordingError(_PIPE_REFUSED, file=str(path))
+    except OSError:
+        pass  # none there yet (or not to be asked): opened below, as any other
     for _ in range(100):
         try:
             fd = os.open(path, os.O_WRONLY | os.O_CREAT, 0o666)
@@ -472,8 +482,7 @@ class RecordingWriter:
             self._stream.tell()  # the MCAP writer keeps offsets: a pipe has none
         except OSError:
             self._stream.close()
-            raise RecordingError("cannot write a recording to a pipe: an MCAP file is written "
-                                 "with offsets into it; give a file", file=str(self.path)) from None
+            raise RecordingError(_PIPE_REFUSED, file=str(self.path)) from None
         # The data section's CRC too (the library leaves it out by default): what the
         # chunks' and attachments' own CRCs leave, the message indexes and the metadata, is
         # then checked by a replay (``Recording.crc_mismatches``).
@@ -623,7 +632,10 @@ class Recording:
             raise RecordingError("is a folder, not a recording (give its recordings: "
                                  f"{self.path}/*.mcap)", file=str(self.path))
         if not self.path.is_file():
-            raise RecordingError("no such file", file=str(self.path))
+            # (A user's trial: /dev/null and a named pipe, which exist, read "no such file".)
+            raise RecordingError("not a file (a device or a pipe): a recording is read from "
+                                 "its file" if self.path.exists() else "no such file",
+                                 file=str(self.path))
         self.profile = None
         self.truncated = False
         # Cut after its data's end: every frame whole, its summary and footer lost (other
