@@ -901,3 +901,19 @@ def test_a_schema_error_spells_true_false_and_null_as_json_does():
         with pytest.raises(SessionError) as info:
             make_session(doc)
         assert info.value.message == f"{spelled} is not of type 'number'"
+
+
+def test_a_rotation_that_is_not_a_unit_quaternion_is_warned_of():
+    """A user's trial: a keyframe's ``xyzw`` of [0, 0, 0, 2] (the schema says a unit
+    quaternion) was read as its direction without a word. One of norm 1 to round-off, no
+    word."""
+    doc = json.loads((RECORDINGS / "drop_on_table.json").read_text())
+    doc["tracker"]["devices"]["right_hand"][0]["xyzw"] = [0, 0, 0, 2]
+    doc["parts"][0]["pose"]["xyzw"] = [0.0, 0.0, 0.70710678, 0.70710678]  # to 1e-8
+    assert make_session(doc).warnings() == [
+        "tracker.devices.right_hand[0].xyzw: [0, 0, 0, 2] has norm 2, not 1: read as the "
+        "unit quaternion of its direction; a typo?"]
+    doc["parts"][0]["pose"]["xyzw"] = [0, 0, 0.7, 0.7]
+    assert make_session(doc).warnings()[0] == (
+        "parts[0].pose.xyzw (part 'peg'): [0, 0, 0.7, 0.7] has norm 0.9899, not 1: read as "
+        "the unit quaternion of its direction; a typo?")

@@ -364,6 +364,35 @@ def _shared_body_names(doc: dict) -> list[str]:
     return out
 
 
+# A quaternion given this far from norm 1 is most likely a slip (a typo, a component
+# dropped, another order's numbers): it is read as its unit quaternion all the same.
+_QUATERNION_NORM_SLIP = 1e-3
+
+
+def _unnormalised_quaternions(doc: dict) -> list[str]:
+    """Rotations (``xyzw``) anywhere in the session that are not unit quaternions: read as
+    their unit quaternion without a word until a user's trial (``[0, 0, 0, 2]``); the first
+    three."""
+    out: list[str] = []
+
+    def walk(value: object, where: str) -> None:
+        if isinstance(value, dict):
+            q = value.get("xyzw")
+            if isinstance(q, list) and len(q) == 4 \
+                    and all(isinstance(c, (int, float)) for c in q):
+                norm = math.sqrt(sum(float(c) ** 2 for c in q))
+                if norm > 0.0 and abs(norm - 1.0) > _QUATERNION_NORM_SLIP:
+                    out.append(f"{where}.xyzw: {q} has norm {norm:.4g}, not 1: read as the "
+                               "unit quaternion of its direction; a typo?")
+            for key, item in value.items():
+                walk(item, f"{where}.{key}" if where else key)
+        elif isinstance(value, list):
+            for k, item in enumerate(value):
+                walk(item, f"{where}[{k}]")
+    walk(doc, "")
+    return out[:3]
+
+
 def _unknown_body_keys(doc: dict) -> list[str]:
     """Keys of the base or an environment object that neither has (``fixd`` for ``fixed``:
     the base then rode the hand without a word). Their schema, unlike a part's, lets them
@@ -540,6 +569,7 @@ class Session:
         out += _unlikely_densities(self.doc)
         out += _friction_inverted(self.doc)
         out += _unknown_body_keys(self.doc)
+        out += _unnormalised_quaternions(self.doc)
         tracker = self.doc["tracker"]
         if "csv_between" in tracker and "csv" not in tracker:
             out.append("tracker.csv_between applies to a tracker log (tracker.csv); "
