@@ -9,7 +9,7 @@ and the part's depth into the base and the table measured with exact solids, ind
 of the simulator's meshes and fcl (``_contact_battery.measure``).
 
 Short by default (CI): 24 representative scenarios. ``VADE_STRESS=full python -m pytest -q
--m stress`` runs all 96. The 3 known failures are strict xfails naming the gap documented
+-m stress`` runs all 96. The 2 known failures are strict xfails naming the gap documented
 in docs/DEVELOPMENT.md ("Known gaps", first item): fixing one turns its xfail into a
 failure, to be unmarked.
 """
@@ -60,9 +60,6 @@ SHORT = {
 
 _GAP = "docs/DEVELOPMENT.md, Known gaps: contact in flight is a sequence of grazes: "
 KNOWN = {
-    "2_block_wall_noise_seed9": _GAP + "a part let go already overlapping the base (the noisy "
-    "hand put it 0.69 mm into the wall) rests where it is, held up by the wall 20 mm above "
-    "the plate",
     "4_plane_block_edge_golden": _GAP + "a block sliding off a plate's edge dips 0.4-0.5 mm "
     "into the plate's top for a frame as it tips (it left that face at distance 0)",
     "4_plane_block_edge_fast45": _GAP + "a block sliding off a plate's edge dips 0.4-0.5 mm "

@@ -713,3 +713,37 @@ def test_a_passed_surface_is_met_at_a_tenth_of_its_gap_and_never_farther_than_th
         assert step._met_at(f, 0.9e-3 * tol) == 0.0
         assert step._met_at(f, 1.0e-3 * tol) == pytest.approx(1e-4 * tol, rel=1e-15)
         assert step._met_at(f, 5e-3) == tol
+
+
+def test_a_block_let_go_inside_a_wall_is_moved_out_and_falls_to_the_plate():
+    """A contact battery's (its ``2_block_wall_noise_seed9``): the hand's tracker noise put a
+    block 0.69 mm into the base's wall as it let go, 20 mm above the plate; overlapping, no
+    face told which way was out, and it rested there, held up by the wall. Let go inside
+    one flat face (no deeper than 20 tolerances), it is moved out along that face's normal
+    to a tenth of the tolerance from it, then let go as any block touching a wall: it falls
+    along the wall and rests on the plate. Here 0.5 mm into the wall's inner face (base y
+    0.13, the block's half width 25 mm), its top 0.5 mm above the wall's top, so that it is
+    in the wall's top face too: out through the side, where it is least deep."""
+    import sys
+    sys.path.insert(0, str(RECORDINGS.parent / "tests"))
+    import _contact_battery as cb
+    doc = cb.block_wall(gap_m=-0.0005)
+    for keyframe in doc["tracker"]["devices"]["right_hand"][2:4]:
+        keyframe["position"][2] += 0.0005  # its top 0.5 mm above the wall's (base z 0.07)
+    records = run_records(doc)
+    tol = 1e-4
+    released = next(r for r in records if any(e.kind == "PartReleased" for e in r.events))
+    (event,) = [e for e in released.events if e.kind == "PartReleased"]
+    assert event.cause == "released"  # flies: not "released_touching_base", held by the wall
+    base = released.base
+    block = released.parts[0]
+    in_base = sp.Pose(tuple(base.position), tuple(base.rotation_xyzw)).inverse().compose(
+        sp.Pose(tuple(block.position), tuple(block.rotation_xyzw)))
+    # Its face 0.1 tolerance off the wall's (y 0.13 - 0.025 = 0.105 its centre at most).
+    assert in_base.position[1] == pytest.approx(0.13 - 0.025 - 0.1 * tol, abs=1e-9)
+    last = records[-1].parts[0]
+    assert last.mode == "ONBASESTATIC"
+    o = cb.measure(doc, records)
+    assert o.max_pen_base <= tol and o.held_up and o.gap <= 2 * tol, o
+    # The plate's top at base z 0.01: the block's bottom (half height 20 mm) rests on it.
+    assert o.in_base[2, 3] == pytest.approx(0.01 + 0.02, abs=2 * tol)

@@ -132,12 +132,19 @@ class _Surface:
     lo: sp.Vec3
     hi: sp.Vec3
     obj: fcl.CollisionObject | None = None
+    # Its outward normal (base axes) if it is flat, None if curved; asked for once
+    # (``CollisionWorld.flat_normal``).
+    flat: sp.Vec3 | None = None
+    flat_known: bool = False
 
 
 # Faces meeting at a fold under this are one surface (a plane meshed finely, a cylinder's
 # side); the base's edges and corners are sharper.
 _FOLD_DEG = 30.0
 _FACE_COS = math.cos(math.radians(30.0))
+# A surface whose faces' normals are all within this of their mean is flat (a plane meshed
+# in triangles: their normals agree to round-off).
+_FLAT_COS = math.cos(math.radians(0.5))
 
 
 def base_surfaces(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -592,6 +599,39 @@ class CollisionWorld:
                 near.append((index, d))
         near.sort()
         return tuple(i for i, _ in near), tuple(d for _, d in near)
+
+    def flat_normal(self, index: int) -> sp.Vec3 | None:
+        """The outward normal (base axes) of one of the base's surfaces that is flat (each
+        face's normal within ``_FLAT_COS`` of their area-weighted mean), None for a curved
+        one (a bore's wall)."""
+        surface = self._surfaces()[index]
+        if not surface.flat_known:
+            tri = self._base_vertices[self._base_faces[surface.faces]]
+            areas = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])  # 2 x area x normal
+            total = areas.sum(axis=0)
+            length = float(math.sqrt(float(total[0]) ** 2 + float(total[1]) ** 2
+                                     + float(total[2]) ** 2))
+            surface.flat_known = True
+            if length > 0.0:
+                mean = (float(total[0]) / length, float(total[1]) / length,
+                        float(total[2]) / length)
+                sizes = norms(areas)
+                along = (areas[:, 0] * mean[0] + areas[:, 1] * mean[1]
+                         + areas[:, 2] * mean[2])
+                if bool(np.all(along >= _FLAT_COS * sizes)):
+                    surface.flat = mean
+        return surface.flat
+
+    def depth_in_flat(self, part: str, base_from_part: sp.Pose, index: int,
+                      normal: sp.Vec3, reach: float) -> float | None:
+        """How far the posed part lies inside flat surface ``index`` (outward ``normal``,
+        ``flat_normal``) along that normal: moved out ``reach`` along it, how much nearer
+        than ``reach`` it still is (fcl tells no depth of meshes that overlap; it tells a
+        distance). None where it is deeper than ``reach``."""
+        moved = sp.Pose(sp.add(base_from_part.position, sp.scale(normal, reach)),
+                        base_from_part.rotation)
+        d = self.surface_distance(part, moved, index)
+        return reach - d if d > 0.0 else None
 
     def surface_distance(self, part: str, base_from_part: sp.Pose, index: int) -> float:
         """Distance from the posed part to one of the base's surfaces (``base_surfaces``)."""

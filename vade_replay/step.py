@@ -565,6 +565,18 @@ def _release(f: _Frame, index: int, hand: str) -> None:
         base_from_part = f.base_pose.inverse().compose(part.pose)
         if f.collision.distance_to_base(part.name, base_from_part) <= physics.contact_tolerance:
             normal, _, point = f.collision.base_contact(part.name, base_from_part)
+            if normal is None:
+                # Let go inside the base (the hand's tracker noise put it there): out of the
+                # one flat face it is in, it is let go touching that face (a contact
+                # battery's: 0.69 mm into a wall, it rested there, held up by the wall 20 mm
+                # above the plate, no face telling which way is out).
+                out = _out_of_flat_overlap(f, part.name, base_from_part)
+                if out is not None:
+                    base_from_part = out
+                    part = replace(part, pose=cast(sp.Pose, f.base_pose).compose(out))
+                    f.parts[index] = part
+                    cm = part.pose.apply(body.center_of_mass)
+                    normal, _, point = f.collision.base_contact(part.name, base_from_part)
             up = _support(f, normal)
             if up is None and normal is not None:
                 up = _support_elsewhere(f, part.name, base_from_part, ())
@@ -600,6 +612,38 @@ def _release(f: _Frame, index: int, hand: str) -> None:
                         part_from_principal=body.part_from_principal,
                         principal_moments=body.principal_moments)
     f.change_mode(index, PartState(part.name, INSPACE, part.pose, v, w, flight), flies)
+
+
+# How deep in a flat face of the base a part let go inside it may be and be moved out of it
+# (``_out_of_flat_overlap``), in contact tolerances: a tracker's noise of a few tenths of a
+# millimetre; deeper, nothing says the hand did not mean it.
+_OVERLAP_REACH_TOLERANCES: Final = 20.0
+
+
+def _out_of_flat_overlap(f: _Frame, part: str, base_from_part: sp.Pose) -> sp.Pose | None:
+    """A part let go overlapping the base: its pose (base axes) moved out of one flat face
+    it is in (``flat_normal``), no deeper than ``_OVERLAP_REACH_TOLERANCES``, along that
+    face's normal to a tenth of the contact tolerance from it, where that takes it out of
+    the whole base; of such faces, the one it is least deep in (a block put into a wall
+    just below the wall's top is in the wall's side and its top: out through the side).
+    None where no such face does (a curved surface, a part deeper, a corner)."""
+    tol = f.scene.physics.contact_tolerance
+    overlapped, _ = f.collision.surface_gaps(part, base_from_part, 0.0)
+    best: sp.Pose | None = None
+    least = float("inf")
+    for surface in overlapped:
+        normal = f.collision.flat_normal(surface)
+        if normal is None:
+            continue
+        depth = f.collision.depth_in_flat(part, base_from_part, surface, normal,
+                                          _OVERLAP_REACH_TOLERANCES * tol)
+        if depth is None or not 0.0 <= depth < least:
+            continue
+        moved = sp.Pose(sp.add(base_from_part.position, sp.scale(normal, depth + 0.1 * tol)),
+                        base_from_part.rotation)
+        if f.collision.distance_to_base(part, moved) > 0.0:
+            best, least = moved, depth
+    return best
 
 
 # --- free flight and contact with the environment -------------------------------------
