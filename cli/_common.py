@@ -16,22 +16,24 @@ from vade_replay import native
 from vade_replay.errors import ConfigError, Terminated, VadeError, raise_terminated
 
 EXIT_OK, EXIT_DIVERGED, EXIT_UNUSABLE = 0, 1, 2
+EXIT_PIPE_CLOSED = 141
+EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143  # 128 + SIGINT's number, + SIGTERM's
 
 
 def counted(n: int, word: str) -> str:
     """``n word``, the word plural but for one: "1 frame", "2 frames" (a user's trial read
     "1 transitions")."""
     return f"{n} {word}" if n == 1 else f"{n} {word}s"
-EXIT_PIPE_CLOSED = 141
-EXIT_INTERRUPTED, EXIT_TERMINATED = 130, 143  # 128 + SIGINT's number, + SIGTERM's
 
 
-class StdoutOrNothing:
-    """Standard output until its reader goes (``| head``), then nothing: for a run that
-    also writes files (tables, ``-o``, ``--rerun``), which it then goes on to write. The
-    run's ``run()`` still ends with 141 and a line saying so."""
+class _StdoutUnwritable(VadeError):
+    """Standard output that takes nothing (a full disk, ``> /dev/full``)."""
 
-    gone = False  # (set on the class: ``run`` asks after the command has put it back)
+
+class _CheckedStdout:
+    """Standard output whose failure to write (but its reader gone: ``_reader_gone``) is a
+    ``VadeError``: one line and exit 2, not a traceback and exit 1, "diverged" (a user's
+    trial: ``vade-replay X > /dev/full``). ``run`` puts every command's behind it."""
 
     def __init__(self, stream) -> None:
         self._stream = stream
@@ -40,16 +42,37 @@ class StdoutOrNothing:
         try:
             return self._stream.write(text)
         except BrokenPipeError:
-            self._discard()
+            self._reader_gone()
             return len(text)
+        except OSError as exc:
+            raise _StdoutUnwritable(f"cannot write it: {exc.strerror or exc}",
+                                    file="standard output") from None
 
     def flush(self) -> None:
         try:
             self._stream.flush()
         except BrokenPipeError:
-            self._discard()
+            self._reader_gone()
+        except OSError as exc:
+            raise _StdoutUnwritable(f"cannot write it: {exc.strerror or exc}",
+                                    file="standard output") from None
 
-    def _discard(self) -> None:
+    def _reader_gone(self) -> None:
+        """Its reader went (``| head``): here, as without this (``run`` tells it)."""
+        raise BrokenPipeError
+
+    def __getattr__(self, name: str):
+        return getattr(self._stream, name)
+
+
+class StdoutOrNothing(_CheckedStdout):
+    """Standard output until its reader goes (``| head``), then nothing: for a run that
+    also writes files (tables, ``-o``, ``--rerun``), which it then goes on to write. The
+    run's ``run()`` still ends with 141 and a line saying so."""
+
+    gone = False  # (set on the class: ``run`` asks after the command has put it back)
+
+    def _reader_gone(self) -> None:
         if closed_pipe(self._stream):
             StdoutOrNothing.gone = True
             try:
@@ -58,9 +81,6 @@ class StdoutOrNothing:
                 pass
             return
         raise BrokenPipeError  # not standard output's own reader: as without this
-
-    def __getattr__(self, name: str):
-        return getattr(self._stream, name)
 
 
 @contextmanager
@@ -76,40 +96,6 @@ def going_on_without_stdout():
             through.flush()
         finally:
             sys.stdout = saved
-
-
-class _StdoutUnwritable(VadeError):
-    """Standard output that takes nothing (a full disk, ``> /dev/full``)."""
-
-
-class _CheckedStdout:
-    """Standard output whose failure to write (but a reader gone, ``StdoutOrNothing``'s) is
-    a ``VadeError``: one line and exit 2, not a traceback and exit 1, "diverged" (a
-    user's trial: ``vade-replay X > /dev/full``)."""
-
-    def __init__(self, stream) -> None:
-        self._stream = stream
-
-    def write(self, text: str) -> int:
-        try:
-            return self._stream.write(text)
-        except BrokenPipeError:
-            raise
-        except OSError as exc:
-            raise _StdoutUnwritable(f"cannot write it: {exc.strerror or exc}",
-                                    file="standard output") from None
-
-    def flush(self) -> None:
-        try:
-            self._stream.flush()
-        except BrokenPipeError:
-            raise
-        except OSError as exc:
-            raise _StdoutUnwritable(f"cannot write it: {exc.strerror or exc}",
-                                    file="standard output") from None
-
-    def __getattr__(self, name: str):
-        return getattr(self._stream, name)
 
 
 def run(main: Callable[[list[str] | None], int], argv: list[str] | None = None) -> int:

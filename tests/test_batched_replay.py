@@ -168,17 +168,20 @@ def test_a_whole_recording_is_the_golden_frame_for_frame(tmp_path):
         == [(f.inputs, f.derived) for f in Recording(GOLDEN).frames()]
 
 
-def _sigint_inside_frame(monkeypatch, at_message: int, times: int = 1) -> None:
-    """A real Ctrl-C (SIGINT to this process) while a frame is being written: as the
-    writer adds message ``at_message`` of the run (counted from 1: a frame's tracker message
-    is followed by its /parts and transforms, so 3k + 2 falls inside a frame where no event
-    came before), ``times`` over."""
+def _sigint_inside_frame(monkeypatch, at_message: int, times: int = 1,
+                         signum: int | None = None) -> None:
+    """A real Ctrl-C (SIGINT to this process; or ``signum``) while a frame is being
+    written: as the writer adds message ``at_message`` of the run (counted from 1: a frame's
+    tracker message is followed by its /parts and transforms, so 3k + 2 falls inside a frame
+    where no event came before), ``times`` over."""
     import os
     import signal
 
     from vade_replay.recording import RecordingWriter
-    if signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
-        pytest.skip("SIGINT does not have Python's own handler here")
+    if signum is None:
+        signum = signal.SIGINT
+        if signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+            pytest.skip("SIGINT does not have Python's own handler here")
     add = RecordingWriter._add
     count = 0
 
@@ -187,7 +190,7 @@ def _sigint_inside_frame(monkeypatch, at_message: int, times: int = 1) -> None:
         count += 1
         if count == at_message:
             for _ in range(times):
-                os.kill(os.getpid(), signal.SIGINT)
+                os.kill(os.getpid(), signum)
                 for _ in range(1000):  # (the handler runs between bytecodes)
                     pass
         add(self, topic, time_ns, data)
@@ -341,25 +344,13 @@ def test_sigterm_is_taken_as_ctrl_c_and_ends_143(tmp_path, monkeypatch, command)
     recording without a word, its file cut short mid-frame. It is taken as Ctrl-C is: held
     to the frame's end, the file closed with its frames and why it stopped, one line, and
     exit 143 (128 + SIGTERM's number); SIGTERM's own action is put back after the run."""
-    import os
     import signal
 
     from conftest import run_cli
-    from vade_replay.recording import RecordingWriter
     if signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL:
         pytest.skip("SIGTERM has a handler of its own here")
-    add = RecordingWriter._add
-    count = 0
-
-    def adding(self, topic, time_ns, data):
-        nonlocal count
-        count += 1
-        if count == 3 * 40 + 2:  # inside a frame near the 40th
-            os.kill(os.getpid(), signal.SIGTERM)
-            for _ in range(1000):  # (the handler runs between bytecodes)
-                pass
-        add(self, topic, time_ns, data)
-    monkeypatch.setattr(RecordingWriter, "_add", adding)
+    # Inside a frame near the 40th; SIGTERM is taken as Ctrl-C only inside a command's run.
+    _sigint_inside_frame(monkeypatch, at_message=3 * 40 + 2, signum=signal.SIGTERM)
     out = tmp_path / "out.mcap"
     args = ([str(GOLDEN.with_suffix(".json"))] if command == "vade-record"
             else [str(GOLDEN)]) + ["-o", str(out)]
