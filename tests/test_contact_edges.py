@@ -747,3 +747,47 @@ def test_a_block_let_go_inside_a_wall_is_moved_out_and_falls_to_the_plate():
     assert o.max_pen_base <= tol and o.held_up and o.gap <= 2 * tol, o
     # The plate's top at base z 0.01: the block's bottom (half height 20 mm) rests on it.
     assert o.in_base[2, 3] == pytest.approx(0.01 + 0.02, abs=2 * tol)
+
+
+def test_a_part_let_go_inside_the_base_is_moved_no_farther_than_out_and_never_through():
+    """A review of the move out of a flat face: (1) a block turned 45 degrees across the
+    plate's top edge, 0.5 mm into it, was moved 0.95 mm up (the depth read off a distance
+    overestimates where the part reaches past the face's edge) and rested hovering 0.45 mm
+    over the edge: it is stepped back to the face. (2) A 1.5 mm sheet let go 1.3 mm into a
+    1 mm plate from above (its centre of mass below the plate's top) was moved out
+    through the plate's underside, least deep, and fell to the table: a face the centre of
+    mass is inside of is no way out (it rests where it is, as before the move)."""
+    import sys
+    sys.path.insert(0, str(RECORDINGS.parent / "tests"))
+    import numpy as np
+
+    import _contact_battery as cb
+    tol, a = 1e-4, 0.0005
+    doc = cb.block_wall()
+    turn = cb.euler_deg_matrix((0, 45, 0))
+    # Its face toward the plate's top edge (facing down and -x), the edge a under it.
+    face, half = next((turn @ np.array(n, float), h) for n, h in (
+        ((1, 0, 0), 0.025), ((-1, 0, 0), 0.025), ((0, 0, 1), 0.02), ((0, 0, -1), 0.02))
+        if (turn @ np.array(n, float))[0] < -0.5 and (turn @ np.array(n, float))[2] < -0.5)
+    centre = np.array([0.15, 0.0, 0.01 - a]) - face * half  # base axes
+    hand = doc["tracker"]["devices"]["right_hand"]
+    for keyframe in hand[2:4]:
+        keyframe["position"] = (centre + [0.0, 0.2, 0.95]).tolist()
+        keyframe["euler_deg"] = [0, 45, 0]
+    records = run_records(doc)
+    released = next(r for r in records if any(e.kind == "PartReleased" for e in r.events))
+    z = released.parts[0].position[2] - 0.95
+    # Out, and no farther than within a fifth of the tolerance of the edge (0.95 mm before).
+    assert a < z - centre[2] < a + 0.3 * tol
+    o = cb.measure(doc, records)
+    assert o.max_pen_base <= tol and o.gap <= 2 * tol, o
+    # (2) The thin plate and the sheet.
+    doc = cb.block_wall()
+    doc["base"]["shape"] = {"type": "box", "size": [0.3, 0.3, 0.001]}  # base z +-0.5 mm
+    doc["parts"][0]["shape"] = {"type": "box", "size": [0.05, 0.05, 0.0015]}
+    hand = doc["tracker"]["devices"]["right_hand"]
+    for keyframe in hand[2:4]:
+        keyframe["position"] = [0.0, 0.2, 0.95 + 0.0005 + 0.00075 - 0.0013]
+    records = run_records(doc)
+    assert records[-1].parts[0].mode == "ONBASESTATIC"  # not on the table, 200 mm below
+    assert records[-1].parts[0].position[2] == pytest.approx(0.95 - 0.00005, abs=1e-6)

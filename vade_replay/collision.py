@@ -132,9 +132,9 @@ class _Surface:
     lo: sp.Vec3
     hi: sp.Vec3
     obj: fcl.CollisionObject | None = None
-    # Its outward normal (base axes) if it is flat, None if curved; asked for once
-    # (``CollisionWorld.flat_normal``).
-    flat: sp.Vec3 | None = None
+    # Its outward normal (base axes) and its plane's offset along it if it is flat, None if
+    # curved; asked for once (``CollisionWorld.flat_plane``).
+    flat: tuple[sp.Vec3, float] | None = None
     flat_known: bool = False
 
 
@@ -600,10 +600,11 @@ class CollisionWorld:
         near.sort()
         return tuple(i for i, _ in near), tuple(d for _, d in near)
 
-    def flat_normal(self, index: int) -> sp.Vec3 | None:
-        """The outward normal (base axes) of one of the base's surfaces that is flat (each
-        face's normal within ``_FLAT_COS`` of their area-weighted mean), None for a curved
-        one (a bore's wall)."""
+    def flat_plane(self, index: int) -> tuple[sp.Vec3, float] | None:
+        """The plane of one of the base's surfaces that is flat (each face's normal within
+        ``_FLAT_COS`` of their area-weighted mean): its normal (base axes) as the faces'
+        winding has it, outward for the meshes the scene builds, and its offset along it
+        (the plane is ``dot(normal, x) == offset``); None for a curved one (a bore's wall)."""
         surface = self._surfaces()[index]
         if not surface.flat_known:
             tri = self._base_vertices[self._base_faces[surface.faces]]
@@ -619,13 +620,15 @@ class CollisionWorld:
                 along = (areas[:, 0] * mean[0] + areas[:, 1] * mean[1]
                          + areas[:, 2] * mean[2])
                 if bool(np.all(along >= _FLAT_COS * sizes)):
-                    surface.flat = mean
+                    corner = tri[0, 0]
+                    surface.flat = (mean, mean[0] * float(corner[0])
+                                    + mean[1] * float(corner[1]) + mean[2] * float(corner[2]))
         return surface.flat
 
     def depth_in_flat(self, part: str, base_from_part: sp.Pose, index: int,
                       normal: sp.Vec3, reach: float) -> float | None:
         """How far the posed part lies inside flat surface ``index`` (outward ``normal``,
-        ``flat_normal``) along that normal: moved out ``reach`` along it, how much nearer
+        ``flat_plane``) along that normal: moved out ``reach`` along it, how much nearer
         than ``reach`` it still is (fcl tells no depth of meshes that overlap; it tells a
         distance). None where it is deeper than ``reach``."""
         moved = sp.Pose(sp.add(base_from_part.position, sp.scale(normal, reach)),

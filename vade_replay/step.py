@@ -570,7 +570,7 @@ def _release(f: _Frame, index: int, hand: str) -> None:
                 # one flat face it is in, it is let go touching that face (a contact
                 # battery's: 0.69 mm into a wall, it rested there, held up by the wall 20 mm
                 # above the plate, no face telling which way is out).
-                out = _out_of_flat_overlap(f, part.name, base_from_part)
+                out = _out_of_flat_overlap(f, index, base_from_part)
                 if out is not None:
                     base_from_part = out
                     part = replace(part, pose=cast(sp.Pose, f.base_pose).compose(out))
@@ -615,34 +615,62 @@ def _release(f: _Frame, index: int, hand: str) -> None:
 
 
 # How deep in a flat face of the base a part let go inside it may be and be moved out of it
-# (``_out_of_flat_overlap``), in contact tolerances: a tracker's noise of a few tenths of a
-# millimetre; deeper, nothing says the hand did not mean it.
-_OVERLAP_REACH_TOLERANCES: Final = 20.0
+# (``_out_of_flat_overlap``), metres: a tracker's noise of a few tenths of a millimetre,
+# whatever the contact tolerance; deeper, nothing says the hand did not mean it.
+_OVERLAP_REACH_M: Final = 0.002
 
 
-def _out_of_flat_overlap(f: _Frame, part: str, base_from_part: sp.Pose) -> sp.Pose | None:
+def _out_of_flat_overlap(f: _Frame, index: int, base_from_part: sp.Pose) -> sp.Pose | None:
     """A part let go overlapping the base: its pose (base axes) moved out of one flat face
-    it is in (``flat_normal``), no deeper than ``_OVERLAP_REACH_TOLERANCES``, along that
-    face's normal to a tenth of the contact tolerance from it, where that takes it out of
-    the whole base; of such faces, the one it is least deep in (a block put into a wall
-    just below the wall's top is in the wall's side and its top: out through the side).
-    None where no such face does (a curved surface, a part deeper, a corner)."""
+    it is in (``flat_plane``), no deeper than ``_OVERLAP_REACH_M``, along that face's
+    normal to about a tenth of the contact tolerance from it, where that takes it out of
+    the whole base and clear of the environment; of such faces, the one it is least deep
+    in (a block put into a wall just below the wall's top is in the wall's side and its
+    top: out through the side, the least move). Only a face its centre of mass is outside
+    of: a review put a thin sheet through a thin plate's far side, and one into a plate
+    wound inward (an STL whose faces' normals point in). None where no face will do (a
+    curved surface, a corner, a part deeper)."""
     tol = f.scene.physics.contact_tolerance
-    overlapped, _ = f.collision.surface_gaps(part, base_from_part, 0.0)
+    body = f.scene.parts[index]
+    name = body.name
+    cm = base_from_part.apply(body.center_of_mass)
+    overlapped, _ = f.collision.surface_gaps(name, base_from_part, 0.0)
     best: sp.Pose | None = None
     least = float("inf")
     for surface in overlapped:
-        normal = f.collision.flat_normal(surface)
-        if normal is None:
+        plane = f.collision.flat_plane(surface)
+        if plane is None:
             continue
-        depth = f.collision.depth_in_flat(part, base_from_part, surface, normal,
-                                          _OVERLAP_REACH_TOLERANCES * tol)
-        if depth is None or not 0.0 <= depth < least:
+        normal, offset = plane
+        if not sp.dot(normal, cm) > offset:
+            continue  # its centre of mass inside that face: not the way out
+        depth = f.collision.depth_in_flat(name, base_from_part, surface, normal,
+                                          _OVERLAP_REACH_M)
+        if depth is None or not depth >= 0.0:
             continue
-        moved = sp.Pose(sp.add(base_from_part.position, sp.scale(normal, depth + 0.1 * tol)),
+        # ``depth`` is too large where the part reaches past the face's edge (a review: a
+        # cube turned 45 degrees across a plate's edge, moved 0.95 mm up for 0.5 mm in, then
+        # rested hovering): stepped back toward the face while it is farther than a fifth
+        # of the tolerance, by its distance less a tenth (never into it: it moves no more
+        # than its distance).
+        shift = depth + 0.1 * tol
+        moved = sp.Pose(sp.add(base_from_part.position, sp.scale(normal, shift)),
                         base_from_part.rotation)
-        if f.collision.distance_to_base(part, moved) > 0.0:
-            best, least = moved, depth
+        for _ in range(8):
+            d = f.collision.surface_distance(name, moved, surface)
+            if not d > 0.2 * tol:
+                break
+            shift -= d - 0.1 * tol
+            moved = sp.Pose(sp.add(base_from_part.position, sp.scale(normal, shift)),
+                            base_from_part.rotation)
+        if not shift < least or not f.collision.distance_to_base(name, moved) > 0.0:
+            continue
+        world = cast(sp.Pose, f.base_pose).compose(moved)
+        near = f.collision.environment_near(world.apply(body.center_of_mass),
+                                            body.radius_about_cm)
+        if near and not f.collision.distance_to_environment(name, world, near)[0] > 0.0:
+            continue  # out of the base into the table (a review: squeezed between them)
+        best, least = moved, shift
     return best
 
 
