@@ -9,11 +9,12 @@ import shlex
 import signal
 import sys
 import threading
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from typing import Callable
 
 from vade_replay import native
-from vade_replay.errors import ConfigError, Terminated, VadeError, raise_terminated
+from vade_replay.errors import (TERMINATED_RAISED, ConfigError, Terminated, VadeError,
+                                raise_terminated)
 
 EXIT_OK, EXIT_DIVERGED, EXIT_UNUSABLE = 0, 1, 2
 EXIT_PIPE_CLOSED = 141
@@ -113,17 +114,63 @@ def run(main: Callable[[list[str] | None], int], argv: list[str] | None = None) 
     # SIGTERM (a scheduler's stop, ``timeout``) taken as Ctrl-C is (``errors.Terminated``),
     # where it has its default action (an embedding program's handler is left alone).
     terminate = None
+    watch: _TermWatch | nullcontext = nullcontext()
     if threading.current_thread() is threading.main_thread() \
             and signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
         terminate = signal.signal(signal.SIGTERM, raise_terminated)
+        watch = _TermWatch()
     try:
-        return _run(main, argv)
+        with watch:
+            return _run(main, argv)
     finally:
         if terminate is not None:
             signal.signal(signal.SIGTERM, terminate)
         sys.stdout, sys.stderr = saved
         if null is not None:
             null.close()
+
+
+# A SIGTERM that Python's handler has not taken within this long ends the process at once,
+# as SIGTERM's default action would: the handler runs only when the main thread is back in
+# Python, and a review held it inside rerun's native flush (a review on a full disk), where
+# SIGTERM used to end it and no longer could.
+_TERM_GRACE_S = 5.0
+
+
+class _TermWatch:
+    """A thread that wakes on each signal (``signal.set_wakeup_fd``, written by CPython's
+    own C handler even while the main thread is held in native code) and, on SIGTERM,
+    ends the process with exit 143 if no ``Terminated`` is raised within
+    ``_TERM_GRACE_S``."""
+
+    def __enter__(self) -> "_TermWatch":
+        TERMINATED_RAISED.clear()
+        self._read, self._write = os.pipe()
+        os.set_blocking(self._write, False)
+        self._previous = signal.set_wakeup_fd(self._write, warn_on_full_buffer=False)
+        self._thread = threading.Thread(target=self._watch, name="sigterm-watch", daemon=True)
+        self._thread.start()
+        return self
+
+    def _watch(self) -> None:
+        while True:
+            try:
+                woken = os.read(self._read, 64)
+            except OSError:
+                return
+            if not woken:
+                return  # closed: the run is over
+            if signal.SIGTERM in woken and not TERMINATED_RAISED.wait(_TERM_GRACE_S):
+                try:
+                    os.write(2, b"terminated (held in native code: ended at once)\n")
+                finally:
+                    os._exit(EXIT_TERMINATED)
+
+    def __exit__(self, *exc) -> None:
+        signal.set_wakeup_fd(self._previous)
+        os.close(self._write)  # the thread reads the end and returns
+        self._thread.join(timeout=1.0)
+        os.close(self._read)
 
 
 def _run(main: Callable[[list[str] | None], int], argv: list[str] | None) -> int:
@@ -149,6 +196,14 @@ def _run(main: Callable[[list[str] | None], int], argv: list[str] | None) -> int
     except VadeError as exc:
         if isinstance(exc.__context__, BrokenPipeError) and closed_pipe(sys.stdout):
             return _pipe_closed()  # a table on standard output, read by `| head`
+        if isinstance(exc, _StdoutUnwritable):
+            # What its buffer still holds goes nowhere at the interpreter's exit, which would
+            # flush it again and fail: "Exception ignored", exit 120 (a review; unseen where
+            # PYTHONUNBUFFERED is set, as in CI).
+            try:
+                _to_devnull(sys.stdout)
+            except (OSError, ValueError):
+                pass
         print(f"error: {exc.describe()}", file=sys.stderr)
         return EXIT_UNUSABLE
     except KeyboardInterrupt as exc:

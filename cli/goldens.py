@@ -304,24 +304,30 @@ def _regenerate(folder: Path, sessions: list[Path]) -> int:
                     print(f"warning: {path}: {warning}", file=sys.stderr)
                 made.append((golden, new, f"{counted(summary.frames, 'frame')}, "
                              f"{counted(summary.transitions, 'transition')}"))
+            # Every golden moved before a line is printed: a standard output that fails (a
+            # full disk) stops the run where it prints (a review: some goldens remade, the
+            # rest not, which "all or none" above is for).
+            lines = []
             for golden, new, counts in made:
                 change = changed(golden, new) if golden.is_file() else "new"
                 if change == "unchanged":
                     # (A user's trial: a golden the same to the byte was written again, a
                     # new file and time for tools that go by them: make, rsync, backups.)
                     new.unlink()
-                    print(f"{golden}: {counts}; unchanged")
+                    lines.append(f"{golden}: {counts}; unchanged")
                     continue
                 if change == _VERSIONS_ONLY:
                     # Only where it was made differs (the machine's kernel build, a package
                     # version): the golden is kept as it was (a developer's trial: every
                     # golden rewritten, 13 binary files to commit, for nothing).
                     new.unlink()
-                    print(f"{golden}: {counts}; unchanged (only its versions metadata "
-                          "differs: kept as it was)")
+                    lines.append(f"{golden}: {counts}; unchanged (only its versions "
+                                 "metadata differs: kept as it was)")
                     continue
                 os.replace(new, golden)
-                print(f"{golden}: {counts}; {change}")
+                lines.append(f"{golden}: {counts}; {change}")
+            for line in lines:
+                print(line)
             return EXIT_OK
         finally:
             for _, new, _ in made:

@@ -1695,3 +1695,82 @@ def test_a_device_or_pipe_given_as_a_recording_is_named_so_and_no_pipe_output_wa
     assert (result.returncode, result.stderr) == (2, refused)
     result = run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"), "-o", str(fifo))
     assert (result.returncode, result.stderr) == (2, refused)
+
+
+def test_standard_output_full_with_python_s_own_buffer_is_still_one_line(tmp_path):
+    """A review: with standard output buffered (no PYTHONUNBUFFERED, as in a user's shell),
+    what the buffer held was flushed again at the interpreter's exit, failed, and the run
+    ended "Exception ignored" and exit 120."""
+    import os
+    import subprocess
+    import sys
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}
+    done = subprocess.run(f"{sys.executable} -m vade_replay.cli.replay "
+                          f"{RECORDINGS / 'drop_on_table.mcap'} > /dev/full", shell=True,
+                          capture_output=True, text=True, env=env)
+    assert (done.returncode, done.stderr) == (
+        2, "error: standard output: cannot write it: No space left on device\n")
+
+
+def test_a_regeneration_whose_standard_output_fails_still_remakes_all_or_none(tmp_path):
+    """A review: the goldens were moved one by one, each printed as it went; standard output
+    failing stopped it after the first, some goldens remade and the rest not. All are
+    moved first, then printed."""
+    import os
+    import shutil
+    import subprocess
+    import sys
+    names = ("drop_on_table", "plane_block_wall")
+    for name in names:
+        for suffix in (".json", ".mcap"):
+            shutil.copy(RECORDINGS / f"{name}{suffix}", tmp_path / f"{name}{suffix}")
+        doc = json.loads((tmp_path / f"{name}.json").read_text())
+        doc["description"] = "described again: its golden changes"
+        (tmp_path / f"{name}.json").write_text(json.dumps(doc))
+    before = {n: (tmp_path / f"{n}.mcap").read_bytes() for n in names}
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}
+    for unbuffered in ("", "1"):
+        done = subprocess.run(f"{sys.executable} -m vade_replay.cli.goldens --dir {tmp_path} "
+                              "> /dev/full", shell=True, capture_output=True, text=True,
+                              env={**env, **({"PYTHONUNBUFFERED": "1"} if unbuffered else {})})
+        assert done.returncode in (0, 2) and "Traceback" not in done.stderr
+        assert all((tmp_path / f"{n}.mcap").read_bytes() != before[n] for n in names)
+        for n in names:
+            shutil.copy(RECORDINGS / f"{n}.mcap", tmp_path / f"{n}.mcap")
+
+
+def test_sigterm_not_taken_in_time_ends_the_run_at_once(monkeypatch):
+    """A review: a review's file writer stuck on a full disk held the main thread inside
+    rerun's native flush, where Python's SIGTERM handler never runs, and SIGTERM, which
+    used to end the process, no longer could. A watchdog woken by the signal ends the
+    process (exit 143) when no Terminated was raised within the grace; none where one
+    was."""
+    import os
+    import signal
+    import threading
+
+    from vade_replay.cli import _common
+    from vade_replay.errors import TERMINATED_RAISED
+    ended = threading.Event()
+    codes = []
+
+    def end(code):
+        codes.append(code)
+        ended.set()
+    monkeypatch.setattr(_common.os, "_exit", end)
+    monkeypatch.setattr(_common, "_TERM_GRACE_S", 0.2)
+    previous = signal.signal(signal.SIGTERM, lambda *a: None)  # a handler that takes nothing
+    try:
+        with _common._TermWatch():
+            os.kill(os.getpid(), signal.SIGTERM)
+            assert ended.wait(5.0)
+        assert codes == [143]
+        codes.clear()
+        ended.clear()
+        with _common._TermWatch():
+            TERMINATED_RAISED.set()  # as raise_terminated does
+            os.kill(os.getpid(), signal.SIGTERM)
+            assert not ended.wait(0.6)
+        assert codes == []
+    finally:
+        signal.signal(signal.SIGTERM, previous)

@@ -5,6 +5,8 @@ The CLI turns any ``VadeError`` into one line on stderr and exit code 2.
 
 from __future__ import annotations
 
+import threading
+
 
 class VadeError(Exception):
     """Root of every error a user can cause (bad files, bad fields, bad recordings)."""
@@ -59,6 +61,13 @@ class Terminated(KeyboardInterrupt):
     user's trial: a study run by a scheduler stopped without a word, its file cut short)."""
 
 
+# Set when a ``Terminated`` is raised (``raise_terminated``, or at a frame's end where a
+# recording held it off): a watchdog (``cli._common``) ends at once a process whose SIGTERM
+# was not, its main thread held inside native code.
+TERMINATED_RAISED = threading.Event()
+
+
 def raise_terminated(signum: int, frame: object) -> None:
     """SIGTERM's handler while a command runs (``cli._common.run``)."""
+    TERMINATED_RAISED.set()
     raise Terminated

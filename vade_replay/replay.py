@@ -35,8 +35,8 @@ from .analysis import SessionAnalysis, compare
 from .arrays import dots, norms, posed_points
 from .collision import SKIP_COAXIAL, SKIP_COPLANAR, CollisionWorld
 from .dynamics import onbase
-from .errors import (ConfigError, RecordingError, SessionError, Terminated, VadeError,
-                     raise_terminated)
+from .errors import (TERMINATED_RAISED, ConfigError, RecordingError, SessionError, Terminated,
+                     VadeError, raise_terminated)
 from .frames import FrameRecord, TrackerFrame
 from .modes import Cause, Mode
 from .recording import (RecordedFrame, Recording, RecordingWriter, holds_recording, in_place,
@@ -100,6 +100,12 @@ def _stepped(items: Iterator[T], advance: Stepper,
             return
 
 
+def _raising(kind: type[KeyboardInterrupt]) -> None:
+    """A SIGTERM taken (``errors.TERMINATED_RAISED``: no watchdog need end the process)."""
+    if kind is Terminated:
+        TERMINATED_RAISED.set()
+
+
 class FrameBoundaryInterrupts:
     """Ctrl-C (SIGINT) while a recording is written, held off to the end of the frame being
     written: ``check`` raises ``KeyboardInterrupt`` there, so the file is closed after a
@@ -127,6 +133,7 @@ class FrameBoundaryInterrupts:
     def _held(self, signum, frame) -> None:
         kind = Terminated if signum == signal.SIGTERM else KeyboardInterrupt
         if self.pending:
+            _raising(kind)
             raise kind  # asked twice: at once
         self.pending = kind
 
@@ -134,6 +141,7 @@ class FrameBoundaryInterrupts:
         """At the end of a frame: the interrupt held off, if one came."""
         if self.pending:
             kind, self.pending = self.pending, None
+            _raising(kind)
             raise kind
 
     def __exit__(self, *exc) -> None:

@@ -159,6 +159,11 @@ def _unwritable(exc: BaseException, path: Path) -> ConfigError:
                        file=str(path))
 
 
+# How long a flush of the review may wait for rerun's file writer: where the writer died (a
+# full disk), rerun's flush waited for ever (a review of this change: 5 runs in 6 hung).
+_FLUSH_TIMEOUT_S = 30.0
+
+
 def _write_runs(rec: rr.RecordingStream, scene: SceneInfo, frames: Iterable[FrameRecord],
                 compare_frames: Iterable[FrameRecord] | None, label: str, compare_label: str,
                 divergence_frame: int | None, has_compare: bool, shown: Path) -> dict:
@@ -168,7 +173,7 @@ def _write_runs(rec: rr.RecordingStream, scene: SceneInfo, frames: Iterable[Fram
 
     def send_blueprint() -> None:
         # After the first frame is flushed, so the viewer knows the timeline the layout names.
-        rec.flush()
+        rec.flush(timeout_sec=_FLUSH_TIMEOUT_S)
         rec.send_blueprint(blueprint, make_active=True, make_default=True)
 
     try:
@@ -183,7 +188,7 @@ def _write_runs(rec: rr.RecordingStream, scene: SceneInfo, frames: Iterable[Fram
             divergence_frame=divergence_frame,
             on_first_frame=send_blueprint,
         )
-        rec.flush()
+        rec.flush(timeout_sec=_FLUSH_TIMEOUT_S)
     except RuntimeError as exc:
         # (rerun's writer stopping: a full disk, "File-writer thread shut down prematurely".)
         raise _unwritable(exc, shown) from None
