@@ -66,6 +66,38 @@ class _CheckedStdout:
         return getattr(self._stream, name)
 
 
+class _SparedStderr:
+    """Standard error that cannot be written (``2> /dev/full``): its lines are lost, the
+    run and its exit code are not (a review: an error line that failed made exit 1,
+    "diverged"). Its descriptor is then pointed at /dev/null, so that the interpreter's
+    exit does not fail on it again."""
+
+    def __init__(self, stream) -> None:
+        self._stream = stream
+
+    def write(self, text: str) -> int:
+        try:
+            return self._stream.write(text)
+        except OSError:
+            self._lost()
+            return len(text)
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()
+        except OSError:
+            self._lost()
+
+    def _lost(self) -> None:
+        try:
+            _to_devnull(self._stream)
+        except (OSError, ValueError):
+            pass
+
+    def __getattr__(self, name: str):
+        return getattr(self._stream, name)
+
+
 class StdoutOrNothing(_CheckedStdout):
     """Standard output until its reader goes (``| head``), then nothing: for a run that
     also writes files (tables, ``-o``, ``--rerun``), which it then goes on to write. The
@@ -111,6 +143,7 @@ def run(main: Callable[[list[str] | None], int], argv: list[str] | None = None) 
         sys.stdout = sys.stdout or null
         sys.stderr = sys.stderr or null
     sys.stdout = _CheckedStdout(sys.stdout)
+    sys.stderr = _SparedStderr(sys.stderr)
     # SIGTERM (a scheduler's stop, ``timeout``) taken as Ctrl-C is (``errors.Terminated``),
     # where it has its default action (an embedding program's handler is left alone).
     terminate = None

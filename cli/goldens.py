@@ -177,7 +177,8 @@ def main(argv: list[str] | None = None) -> int:
             f" --tolerance {args.tolerance}" if args.tolerance is not None else "")
         raise ConfigError(f"is a file, not a folder of sessions: give its folder, and the "
                           f"session's name to take it alone (vade-goldens{asked} --dir "
-                          f"{folder.parent} {folder.stem})", file=str(folder), field="--dir")
+                          f"{quote(str(folder.parent))} {quote(folder.stem)})",
+                          file=str(folder), field="--dir")
     if not folder.is_dir():
         raise ConfigError("no such folder", file=str(folder), field="--dir")
     sessions = sorted(folder.glob("*.json"))
@@ -248,6 +249,9 @@ def _orphan_line(golden: Path, tolerance: Tolerance | None) -> str:
     """A golden with no session file beside it: what its own session's replay says (it
     holds its session), and that it cannot be held to a session file (exit 1, as stale)."""
     summary = replay(Recording(golden), tolerance=tolerance)
+    if summary.truncated:
+        raise VadeError(f"cut short (a crash while it was written), and no session "
+                        f"{golden.stem}.json beside it (renamed or deleted?)", file=str(golden))
     replayed = "its own session replays: " + (
         "match" if summary.match else "within the tolerance" if summary.within_tolerance
         else f"DIVERGED {summary.first_divergence['text']}")
@@ -288,6 +292,7 @@ def _regenerate(folder: Path, sessions: list[Path]) -> int:
                     summary = record(session, new)
                 except VadeError as exc:
                     partial.unlink(missing_ok=True)
+                    new.unlink(missing_ok=True)
                     kept = exc.message.find(f" kept in {partial.resolve()})")
                     if kept > 0:  # (record's "(the N frames before it are kept in ...)")
                         exc.message = exc.message[:exc.message.rindex(" (", 0, kept)]
@@ -296,7 +301,10 @@ def _regenerate(folder: Path, sessions: list[Path]) -> int:
                           file=sys.stderr)
                     return EXIT_UNUSABLE
                 except KeyboardInterrupt as exc:
+                    # (A review: pressed as the take was being finished, it left the whole
+                    # take behind as .NAME.mcap.new.)
                     partial.unlink(missing_ok=True)
+                    new.unlink(missing_ok=True)
                     stop = type(exc)()  # (Ctrl-C, or SIGTERM: errors.Terminated)
                     stop.add_note("no golden was written: the goldens are as they were")
                     raise stop from None

@@ -13,15 +13,13 @@ from shlex import quote
 from types import SimpleNamespace
 from typing import Iterator, TextIO
 
-from vade_replay.errors import ConfigError
+from vade_replay.errors import ConfigError, VadeError, raise_terminated
 from vade_replay.recording import RERUN_MAGIC, Recording, ensure_writable
 from vade_replay.session import MCAP_MAGIC
 from vade_replay.replay import (ANALYSIS_COLUMNS, VALUE_UNITS, WHAT_IF_TOLERANCE, Tolerance,
                                 _number_and_unit, analysis_rows, apply_overrides,
                                 describe_departure, miss_line, parse_tolerance, replay)
 from vade_replay.tables import FRAME_TABLES, STDOUT, FrameTables, TableError, TableFile
-
-from vade_replay.errors import VadeError
 
 from ._common import (EXIT_DIVERGED, EXIT_OK, EXIT_UNUSABLE, Progress, beyond_tolerance_text,
                       closed_pipe, counted, elsewhere_text, going_on_without_stdout,
@@ -439,7 +437,10 @@ def _quiet_on_interrupt() -> None:
     import signal
 
     signal.signal(signal.SIGINT, _exit_interrupted)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # (not the parent's: errors.Terminated)
+    if signal.getsignal(signal.SIGTERM) is raise_terminated:
+        # (Not the parent's, which raises errors.Terminated; one the parent was given, or
+        # an ignored SIGTERM, is left as it is: a review.)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def _exit_interrupted(*_: object) -> None:

@@ -1691,10 +1691,19 @@ def test_a_device_or_pipe_given_as_a_recording_is_named_so_and_no_pipe_output_wa
             "file\n")
     refused = (f"error: {fifo}: cannot write a recording to a pipe: an MCAP file is written "
                "with offsets into it; give a file\n")
-    result = run_cli("vade-record", str(RECORDINGS / "drop_on_table.json"), "-o", str(fifo))
+    # (In processes of their own, with a time limit: a refusal broken would block in the
+    # open, not fail.)
+    result = run_cli("vade-record", str(RECORDINGS / "drop_on_table.json"), "-o", str(fifo),
+                     process=True)
     assert (result.returncode, result.stderr) == (2, refused)
-    result = run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"), "-o", str(fifo))
+    result = run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"), "-o", str(fifo),
+                     process=True)
     assert (result.returncode, result.stderr) == (2, refused)
+    # A review likewise (a review: it blocked in rerun's open for ever).
+    result = run_cli("vade-replay", str(RECORDINGS / "drop_on_table.mcap"), "--rerun",
+                     str(fifo), process=True)
+    assert (result.returncode, result.stderr) == (
+        2, f"error: {fifo}: cannot write a review to a named pipe: give a file\n")
 
 
 def test_standard_output_full_with_python_s_own_buffer_is_still_one_line(tmp_path):
@@ -1774,3 +1783,22 @@ def test_sigterm_not_taken_in_time_ends_the_run_at_once(monkeypatch):
         assert codes == []
     finally:
         signal.signal(signal.SIGTERM, previous)
+
+
+def test_standard_error_that_takes_nothing_or_closed_streams_keep_the_exit_code(tmp_path):
+    """A review: an error line that could not be written (``2> /dev/full``) made exit 1,
+    "diverged"; with standard output and error both closed, the recording being written
+    took descriptor 2, where anything below Python writes."""
+    import subprocess
+    import sys
+    command = Path(sys.executable).parent / "vade-replay"  # the installed entry point
+    missing = tmp_path / "missing.mcap"
+    done = subprocess.run(f"{command} {missing} 2>/dev/full", shell=True,
+                          capture_output=True, text=True, cwd=tmp_path, timeout=120)
+    assert done.returncode == 2
+    out = tmp_path / "out.mcap"
+    done = subprocess.run(f"{command} {RECORDINGS / 'drop_on_table.mcap'} -o {out} >&- 2>&-",
+                          shell=True, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0
+    result = run_cli("vade-replay", str(out))
+    assert result.returncode == 0 and result.stdout.startswith("match: 151 frames")

@@ -405,3 +405,16 @@ def test_a_golden_without_its_session_is_named_not_skipped(tmp_path):
     assert result.returncode == 0 and result.stderr == (
         f"warning: {tmp_path / 'renamed.mcap'}: no session renamed.json beside it (renamed "
         "or deleted?): not regenerated\n")
+
+
+def test_a_golden_without_its_session_cut_short_is_named_so(tmp_path):
+    """A review: a golden with no session beside it that was cut short (a crash while it
+    was written) read "its own session replays: match"."""
+    data = (RECORDINGS / "drop_on_table.mcap").read_bytes()
+    (tmp_path / "cut.mcap").write_bytes(data[: len(data) * 2 // 3])
+    shutil.copy(RECORDINGS / "drop_on_table.json", tmp_path / "drop_on_table.json")
+    shutil.copy(RECORDINGS / "drop_on_table.mcap", tmp_path / "drop_on_table.mcap")
+    result = run_cli("vade-goldens", "--check", "--dir", str(tmp_path))
+    assert result.returncode == 2
+    assert f"error: {tmp_path / 'cut.mcap'}: cut short (a crash while it was written), and no " \
+        "session cut.json beside it (renamed or deleted?)" in result.stderr

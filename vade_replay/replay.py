@@ -2046,7 +2046,8 @@ def _kept_after(writer: RecordingWriter, target: Path | None, partial: Path,
         kept = (f"the {what}frame before it is" if writer.frames == 1
                 else f"the {writer.frames} {what}frames before it are") + f" kept in {partial}"
     exc.message += f" ({kept})"
-    return type(exc)(exc.message, file=exc.file, field=exc.field, frame=exc.frame)
+    return type(exc)(exc.message, file=exc.file, field=exc.field, frame=exc.frame,
+                     item=exc.item)
 
 
 def _interrupted_when_complete(path: Path, kind: type[KeyboardInterrupt] = KeyboardInterrupt
@@ -2463,7 +2464,7 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
             "the file ends after its last frame, short of its end (its summary, footer or "
             "closing bytes missing or unreadable: cut short there?): every frame is whole "
             "and was replayed, but other MCAP tools may refuse it; vade-replay "
-            f"{recording.path} -o WHOLE.mcap writes it again whole")
+            f"{shlex.quote(str(recording.path))} -o WHOLE.mcap writes it again whole")
     summary.match = summary.first_divergence is None
     summary.largest_departure = departure.result() if departure is not None \
         else None if unreadable else {}

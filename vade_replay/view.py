@@ -27,6 +27,7 @@ import itertools
 import math
 import os
 import socket
+import stat
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -127,6 +128,13 @@ def write_review(
     # Written beside its path and moved there when whole, as the tables are (a user's trial:
     # a full disk left a review cut short at its path, over the one there before).
     target = Path(path).resolve()
+    try:
+        pipe = stat.S_ISFIFO(os.stat(target).st_mode)
+    except OSError:
+        pipe = False
+    if pipe:
+        # (Opened, a named pipe with no reader blocks for ever in the open: a review.)
+        raise ConfigError("cannot write a review to a named pipe: give a file", file=str(path))
     staged = target
     if not in_place(target):
         try:
