@@ -634,6 +634,10 @@ def test_gravity_pointing_up_and_hand_limits_the_wrong_way_round_are_warned_of()
         "says so plainly)"]
     doc["physics"] = {"two_hand_max_mass_kg": 3.0}  # under the default one hand's, 5 kg
     assert len(make_session(doc).warnings()) == 1
+    doc["physics"] = {"one_hand_max_mass_kg": 20.0}  # over the default two hands', 15 kg
+    assert make_session(doc).warnings() == [
+        "physics.one_hand_max_mass_kg (20 kg) is over two_hand_max_mass_kg's default (15 kg): "
+        "no part is lifted by two hands; raise two_hand_max_mass_kg too?"]
     doc["physics"] = {"two_hand_max_mass_kg": 5.0}  # two hands turned off, plainly: no word
     assert make_session(doc).warnings() == []
 

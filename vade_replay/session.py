@@ -555,7 +555,12 @@ class Session:
         defaults = Physics()
         one = float(given.get("one_hand_max_mass_kg", defaults.one_hand_max_mass_kg))
         two = float(given.get("two_hand_max_mass_kg", defaults.two_hand_max_mass_kg))
-        if 0.0 < two < one:
+        if 0.0 < two < one and "two_hand_max_mass_kg" not in given:
+            # (A review: one hand's raised alone was told "swapped?" of a key not written.)
+            out.append(f"physics.one_hand_max_mass_kg ({one:g} kg) is over "
+                       f"two_hand_max_mass_kg's default ({two:g} kg): no part is lifted by "
+                       "two hands; raise two_hand_max_mass_kg too?")
+        elif 0.0 < two < one:
             # (One hand's limit says no part is lifted by two hands; under it, most likely
             # the two are swapped: a user's trial.)
             out.append(f"physics.two_hand_max_mass_kg ({two:g} kg) is under "
