@@ -1266,7 +1266,7 @@ def record(session: Session, out: str | Path, *,
                 raise
             raise kept from None
         except BaseException as exc:
-            writer.close(stopped=_why_stopped(exc))
+            _close_stopped(writer, exc)
             if isinstance(exc, KeyboardInterrupt) and writer.frames:
                 exc.add_note(_kept(writer.frames, partial))
             raise
@@ -2060,6 +2060,17 @@ def _interrupted_when_complete(path: Path, kind: type[KeyboardInterrupt] = Keybo
     return stop
 
 
+def _close_stopped(writer: RecordingWriter, exc: BaseException) -> None:
+    """Close the file of a run that ``exc`` stops, saying why; an interrupt stays the
+    interrupt where the file cannot be finished either (a full disk: a review saw Ctrl-C
+    turned into exit 2 and its "kept in" note lost)."""
+    try:
+        writer.close(stopped=_why_stopped(exc))
+    except RecordingError:
+        if not isinstance(exc, KeyboardInterrupt):
+            raise
+
+
 def _why_stopped(exc: BaseException) -> str:
     """What a recording that stopped early keeps as its reason (``STOPPED_METADATA``)."""
     if isinstance(exc, Terminated):
@@ -2419,7 +2430,7 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
             raise kept from None
         except BaseException as exc:
             if writer:
-                writer.close(stopped=_why_stopped(exc))
+                _close_stopped(writer, exc)
                 if isinstance(exc, KeyboardInterrupt) and writer.frames and partial is not None:
                     exc.add_note(_kept(writer.frames, partial))
             raise
