@@ -31,10 +31,8 @@ class _StdoutUnwritable(VadeError):
     """Standard output that takes nothing (a full disk, ``> /dev/full``)."""
 
 
-class _CheckedStdout:
-    """Standard output whose failure to write (but its reader gone: ``_reader_gone``) is a
-    ``VadeError``: one line and exit 2, not a traceback and exit 1, "diverged" (a user's
-    trial: ``vade-replay X > /dev/full``). ``run`` puts every command's behind it."""
+class _GuardedStream:
+    """A standard stream whose failures to write go to ``_failed`` (raised as they are)."""
 
     def __init__(self, stream) -> None:
         self._stream = stream
@@ -42,60 +40,51 @@ class _CheckedStdout:
     def write(self, text: str) -> int:
         try:
             return self._stream.write(text)
-        except BrokenPipeError:
-            self._reader_gone()
-            return len(text)
         except OSError as exc:
-            raise _StdoutUnwritable(f"cannot write it: {exc.strerror or exc}",
-                                    file="standard output") from None
+            self._failed(exc)
+            return len(text)
 
     def flush(self) -> None:
         try:
             self._stream.flush()
-        except BrokenPipeError:
-            self._reader_gone()
         except OSError as exc:
-            raise _StdoutUnwritable(f"cannot write it: {exc.strerror or exc}",
-                                    file="standard output") from None
+            self._failed(exc)
+
+    def _failed(self, exc: OSError) -> None:
+        raise exc
+
+    def __getattr__(self, name: str):
+        return getattr(self._stream, name)
+
+
+class _CheckedStdout(_GuardedStream):
+    """Standard output whose failure to write (but its reader gone: ``_reader_gone``) is a
+    ``VadeError``: one line and exit 2, not a traceback and exit 1, "diverged" (a user's
+    trial: ``vade-replay X > /dev/full``). ``run`` puts every command's behind it."""
+
+    def _failed(self, exc: OSError) -> None:
+        if isinstance(exc, BrokenPipeError):
+            self._reader_gone()
+            return
+        raise _StdoutUnwritable(f"cannot write it: {exc.strerror or exc}",
+                                file="standard output") from None
 
     def _reader_gone(self) -> None:
         """Its reader went (``| head``): here, as without this (``run`` tells it)."""
         raise BrokenPipeError
 
-    def __getattr__(self, name: str):
-        return getattr(self._stream, name)
 
-
-class _SparedStderr:
+class _SparedStderr(_GuardedStream):
     """Standard error that cannot be written (``2> /dev/full``): its lines are lost, the
     run and its exit code are not (a review: an error line that failed made exit 1,
     "diverged"). Its descriptor is then pointed at /dev/null, so that the interpreter's
     exit does not fail on it again."""
 
-    def __init__(self, stream) -> None:
-        self._stream = stream
-
-    def write(self, text: str) -> int:
-        try:
-            return self._stream.write(text)
-        except OSError:
-            self._lost()
-            return len(text)
-
-    def flush(self) -> None:
-        try:
-            self._stream.flush()
-        except OSError:
-            self._lost()
-
-    def _lost(self) -> None:
+    def _failed(self, exc: OSError) -> None:
         try:
             _to_devnull(self._stream)
         except (OSError, ValueError):
             pass
-
-    def __getattr__(self, name: str):
-        return getattr(self._stream, name)
 
 
 class StdoutOrNothing(_CheckedStdout):

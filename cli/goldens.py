@@ -97,8 +97,9 @@ def _check(path: Path, golden: Path, tolerance: Tolerance | None = None) -> tupl
     status += _common.elsewhere_text(summary, str(golden), short=True)
     if summary.physics_changed:
         status += (f" (recorded with other physics defaults: "
-                   f"{', '.join(summary.physics_changed)}; vade-replay {quote(str(golden))} --as-recorded "
-                   "replays it with them; if the change is meant, re-record with vade-goldens)")
+                   f"{', '.join(summary.physics_changed)}; vade-replay {quote(str(golden))} "
+                   "--as-recorded replays it with them; if the change is meant, re-record "
+                   "with vade-goldens)")
     return "diverged", status
 
 
@@ -287,15 +288,10 @@ def _regenerate(folder: Path, sessions: list[Path]) -> int:
                 # (A user's trial: an interrupted regeneration said the frames so far were
                 # "kept" in .NAME.mcap.new.partial, and the next run removed it without a
                 # word: a golden's partial take is no one's data, the session makes it again.)
-                partial = new.with_name(new.name + ".partial")
                 try:
-                    summary = record(session, new)
+                    summary = record(session, new, keep_partial=False)
                 except VadeError as exc:
-                    partial.unlink(missing_ok=True)
                     new.unlink(missing_ok=True)
-                    kept = exc.message.find(f" kept in {partial.resolve()})")
-                    if kept > 0:  # (record's "(the N frames before it are kept in ...)")
-                        exc.message = exc.message[:exc.message.rindex(" (", 0, kept)]
                     print(f"error: {exc.describe()}", file=sys.stderr)
                     print("a session cannot be recorded: no golden was written",
                           file=sys.stderr)
@@ -303,7 +299,6 @@ def _regenerate(folder: Path, sessions: list[Path]) -> int:
                 except KeyboardInterrupt as exc:
                     # (A review: pressed as the take was being finished, it left the whole
                     # take behind as .NAME.mcap.new.)
-                    partial.unlink(missing_ok=True)
                     new.unlink(missing_ok=True)
                     stop = type(exc)()  # (Ctrl-C, or SIGTERM: errors.Terminated)
                     stop.add_note("no golden was written: the goldens are as they were")

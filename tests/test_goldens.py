@@ -311,10 +311,16 @@ def test_an_interrupted_regeneration_leaves_no_partial_golden_and_says_so(tmp_pa
         shutil.copy(RECORDINGS / f"drop_on_table{suffix}", tmp_path / f"drop_on_table{suffix}")
     before = (tmp_path / "drop_on_table.mcap").read_bytes()
 
-    def interrupted(session, out, **kwargs):
-        Path(f"{out}.partial").write_bytes(b"frames so far")  # what record leaves
-        raise KeyboardInterrupt
-    monkeypatch.setattr(goldens, "record", interrupted)
+    from vade_replay.recording import RecordingWriter
+    add = RecordingWriter._add
+    stop: list[BaseException] = []
+
+    def adding(self, topic, time_ns, data):  # the real run, stopped at its 100th message
+        add(self, topic, time_ns, data)
+        if self._sequence == 100:
+            raise stop[0]
+    monkeypatch.setattr(RecordingWriter, "_add", adding)
+    stop.append(KeyboardInterrupt())
     with pytest.raises(KeyboardInterrupt) as info:
         goldens._regenerate(tmp_path, [tmp_path / "drop_on_table.json"])
     assert info.value.__notes__ == ["no golden was written: the goldens are as they were"]
@@ -323,13 +329,7 @@ def test_an_interrupted_regeneration_leaves_no_partial_golden_and_says_so(tmp_pa
     assert (tmp_path / "drop_on_table.mcap").read_bytes() == before
     # So is one an error stopped part way: the error does not say its frames are kept.
     from vade_replay.errors import SessionError
-
-    def failed(session, out, **kwargs):
-        partial = Path(f"{out}.partial")
-        partial.write_bytes(b"frames so far")
-        raise SessionError(f"a bad sample (the 5 frames before it are kept in "
-                           f"{partial.resolve()})", file="s.json", frame=5)
-    monkeypatch.setattr(goldens, "record", failed)
+    stop[0] = SessionError("a bad sample", file="s.json", frame=5)
     assert goldens._regenerate(tmp_path, [tmp_path / "drop_on_table.json"]) == 2
     assert capsys.readouterr().err == ("error: s.json: frame 5: a bad sample\n"
                                        "a session cannot be recorded: no golden was written\n")

@@ -55,19 +55,22 @@ class TransitionRefused(VadeError):
     """A mode transition that the transition table does not allow or that is not built yet."""
 
 
+# Set when a ``Terminated`` is made to be raised (by ``raise_terminated``, or at a frame's
+# end where a recording held it off): a watchdog (``cli._common``) ends at once a process
+# whose SIGTERM was not, its main thread held inside native code.
+TERMINATED_RAISED = threading.Event()
+
+
 class Terminated(KeyboardInterrupt):
     """SIGTERM (a scheduler's stop, ``timeout``, ``kill``), taken as Ctrl-C is: the file
     being written closed after a whole frame, its frames kept, one line; exit 143 (a
     user's trial: a study run by a scheduler stopped without a word, its file cut short)."""
 
-
-# Set when a ``Terminated`` is raised (``raise_terminated``, or at a frame's end where a
-# recording held it off): a watchdog (``cli._common``) ends at once a process whose SIGTERM
-# was not, its main thread held inside native code.
-TERMINATED_RAISED = threading.Event()
+    def __init__(self, *args: object) -> None:
+        super().__init__(*args)
+        TERMINATED_RAISED.set()
 
 
 def raise_terminated(signum: int, frame: object) -> None:
     """SIGTERM's handler while a command runs (``cli._common.run``)."""
-    TERMINATED_RAISED.set()
     raise Terminated

@@ -579,9 +579,7 @@ class RecordingWriter:
                     if exc.errno not in (errno.EINVAL, errno.EROFS):  # a pipe, a device
                         raise
             except OSError as exc:
-                self.unfinished = True
-                raise RecordingError(f"cannot finish writing it: {exc.strerror or exc}",
-                                     file=str(self.path)) from None
+                raise self._cannot_finish(exc) from None
             if fcntl is None:  # not locked; and Windows cannot move an open file
                 self._stream.close()
             complete_output(self.path, complete_as)
@@ -591,9 +589,13 @@ class RecordingWriter:
         try:
             self._stream.close()
         except OSError as exc:
-            self.unfinished = True
-            raise RecordingError(f"cannot finish writing it: {exc.strerror or exc}",
-                                 file=str(self.path)) from None
+            raise self._cannot_finish(exc) from None
+
+    def _cannot_finish(self, exc: OSError) -> RecordingError:
+        """The file's end could not be written (a full disk): it replays as cut short."""
+        self.unfinished = True
+        return RecordingError(f"cannot finish writing it: {exc.strerror or exc}",
+                              file=str(self.path))
 
     def _close_after_failure(self) -> None:
         """Close the file where writing it failed: what the buffer still holds is lost (a

@@ -35,8 +35,8 @@ from .analysis import SessionAnalysis, compare
 from .arrays import dots, norms, posed_points
 from .collision import SKIP_COAXIAL, SKIP_COPLANAR, CollisionWorld
 from .dynamics import onbase
-from .errors import (TERMINATED_RAISED, ConfigError, RecordingError, SessionError, Terminated,
-                     VadeError, raise_terminated)
+from .errors import (ConfigError, RecordingError, SessionError, Terminated, VadeError,
+                     raise_terminated)
 from .frames import FrameRecord, TrackerFrame
 from .modes import Cause, Mode
 from .recording import (RecordedFrame, Recording, RecordingWriter, holds_recording, in_place,
@@ -100,12 +100,6 @@ def _stepped(items: Iterator[T], advance: Stepper,
             return
 
 
-def _raising(kind: type[KeyboardInterrupt]) -> None:
-    """A SIGTERM taken (``errors.TERMINATED_RAISED``: no watchdog need end the process)."""
-    if kind is Terminated:
-        TERMINATED_RAISED.set()
-
-
 class FrameBoundaryInterrupts:
     """Ctrl-C (SIGINT) while a recording is written, held off to the end of the frame being
     written: ``check`` raises ``KeyboardInterrupt`` there, so the file is closed after a
@@ -133,7 +127,6 @@ class FrameBoundaryInterrupts:
     def _held(self, signum, frame) -> None:
         kind = Terminated if signum == signal.SIGTERM else KeyboardInterrupt
         if self.pending:
-            _raising(kind)
             raise kind  # asked twice: at once
         self.pending = kind
 
@@ -141,7 +134,6 @@ class FrameBoundaryInterrupts:
         """At the end of a frame: the interrupt held off, if one came."""
         if self.pending:
             kind, self.pending = self.pending, None
-            _raising(kind)
             raise kind
 
     def __exit__(self, *exc) -> None:
@@ -1198,7 +1190,8 @@ def _part_figures(scene: Scene) -> dict:
 def record(session: Session, out: str | Path, *,
            on_frame: Callable[[FrameRecord], None] | None = None,
            replace_other: bool = True,
-           on_warnings: Callable[[list[str]], None] | None = None) -> RunSummary:
+           on_warnings: Callable[[list[str]], None] | None = None,
+           keep_partial: bool = True) -> RunSummary:
     """Run a session's tracker stream and write the recording to ``out``.
 
     The file is written as ``out.partial`` and renamed when complete. If the run fails part
@@ -1207,7 +1200,9 @@ def record(session: Session, out: str | Path, *,
     other than this recording made again is refused first (``refuse_replacing``). With
     ``on_warnings``, the warnings known before the first frame (the session's and its
     scene's) are given to it then: a long run's slip is seen as it starts, and stopped
-    (the summary's ``warnings`` hold them too, with those found as it ran).
+    (the summary's ``warnings`` hold them too, with those found as it ran). With
+    ``keep_partial`` False, a run that fails or is interrupted removes its partial file and
+    says nothing of it (a golden's take: the session makes it again, ``vade-goldens``).
     """
     scene = session.build_scene()
     if not replace_other:
@@ -1261,13 +1256,21 @@ def record(session: Session, out: str | Path, *,
         except VadeError as exc:
             if writer.frames and exc.frame is None and exc.field is None and frame is not None:
                 exc.frame = frame + 1  # the frame being made when it failed
+            if not keep_partial:
+                _close_stopped(writer, exc)
+                if target is not None:  # (not a device or pipe written in place)
+                    partial.unlink(missing_ok=True)
+                raise
             kept = _kept_after(writer, target, partial, exc, "")
             if kept is None:
                 raise
             raise kept from None
         except BaseException as exc:
             _close_stopped(writer, exc)
-            if isinstance(exc, KeyboardInterrupt) and writer.frames:
+            if not keep_partial:
+                if target is not None:
+                    partial.unlink(missing_ok=True)
+            elif isinstance(exc, KeyboardInterrupt) and writer.frames:
                 exc.add_note(_kept(writer.frames, partial))
             raise
         if first_time is not None:
@@ -2067,7 +2070,7 @@ def _close_stopped(writer: RecordingWriter, exc: BaseException) -> None:
     try:
         writer.close(stopped=_why_stopped(exc))
     except RecordingError:
-        if not isinstance(exc, KeyboardInterrupt):
+        if not isinstance(exc, (KeyboardInterrupt, VadeError)):
             raise
 
 
