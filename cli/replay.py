@@ -6,14 +6,16 @@ import argparse
 import csv
 import os
 import shutil
+import signal
 import tempfile
 import sys
+import threading
 from pathlib import Path
 from shlex import quote
 from types import SimpleNamespace
 from typing import Iterator, TextIO
 
-from vade_replay.errors import ConfigError, VadeError, raise_terminated
+from vade_replay.errors import ConfigError, RecordingError, VadeError, raise_terminated
 from vade_replay.recording import RERUN_MAGIC, Recording, ensure_writable
 from vade_replay.session import MCAP_MAGIC
 from vade_replay.replay import (ANALYSIS_COLUMNS, VALUE_UNITS, WHAT_IF_TOLERANCE, Tolerance,
@@ -431,20 +433,44 @@ def _results_here(args, overrides: dict[str, str],
         yield result
 
 
+_STOPS = {signal.SIGINT, signal.SIGTERM}
+
+
 def _quiet_on_interrupt() -> None:
     """In a worker: Ctrl-C (sent to the whole process group) ends it at once and quietly;
-    the parent process reports "interrupted" (exit 130)."""
-    import signal
-
-    signal.signal(signal.SIGINT, _exit_interrupted)
+    the parent process reports "interrupted" (exit 130). The worker was forked with the
+    two signals blocked (``_results_in_workers``): one sent as it started waits until
+    its own handlers are set here (it used to find the parent's, which raised inside
+    the fork's own hooks: "Exception ignored ... Terminated", a review)."""
+    if signal.getsignal(signal.SIGINT) is not signal.SIG_IGN:
+        # (A parent that ignores SIGINT, run in the background by a script, goes on past
+        # a Ctrl-C to its group: so do its workers. They used to end, and the parent
+        # printed the pool's BrokenProcessPool traceback.)
+        signal.signal(signal.SIGINT, _exit_interrupted)
     if signal.getsignal(signal.SIGTERM) is raise_terminated:
         # (Not the parent's, which raises errors.Terminated; one the parent was given, or
         # an ignored SIGTERM, is left as it is: a review.)
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOPS)
 
 
 def _exit_interrupted(*_: object) -> None:
     os._exit(130)
+
+
+def _pool_stopping_quietly(hook):
+    """``threading.excepthook`` while workers run: the pool's manager thread, finding its
+    workers gone (a SIGTERM or Ctrl-C to the process group) after the run has cancelled
+    what they had, fails to mark those futures broken (``InvalidStateError``: CPython's
+    race, a review saw it in 2 runs of 28). The run reports its stop itself; the
+    traceback of that thread is left out. Anything else goes to ``hook``."""
+    from concurrent.futures import InvalidStateError
+
+    def quietly(args) -> None:
+        if not (issubclass(args.exc_type, InvalidStateError)
+                and type(args.thread).__name__ == "_ExecutorManagerThread"):
+            hook(args)
+    return quietly
 
 
 def _results_in_workers(args, overrides: dict[str, str], outputs: dict[str, TableFile],
@@ -454,6 +480,7 @@ def _results_in_workers(args, overrides: dict[str, str], outputs: dict[str, Tabl
     write their frame table rows into a temporary folder beside the first such table, and
     they are appended here in order."""
     from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures.process import BrokenProcessPool
 
     kinds = _frame_kinds(outputs)
     folder = None
@@ -471,12 +498,36 @@ def _results_in_workers(args, overrides: dict[str, str], outputs: dict[str, Tabl
                   for i in range(len(args.recordings))]
         pool = ProcessPoolExecutor(max_workers=min(jobs, len(args.recordings)),
                                    initializer=_quiet_on_interrupt)
+        hook = threading.excepthook
+        threading.excepthook = _pool_stopping_quietly(hook)
         try:
             n = len(args.recordings)
-            for result, parts in zip(pool.map(_replay_one, args.recordings, [overrides] * n,
-                                              tables, [args.as_recorded] * n,
-                                              [args.tolerance] * n),
-                                     tables):
+            # The workers are forked as the work is handed out: with Ctrl-C and SIGTERM
+            # held off until each has set its own handlers (``_quiet_on_interrupt``).
+            held = signal.pthread_sigmask(signal.SIG_BLOCK, _STOPS)
+            try:
+                results = pool.map(_replay_one, args.recordings, [overrides] * n, tables,
+                                   [args.as_recorded] * n, [args.tolerance] * n)
+            finally:
+                signal.pthread_sigmask(signal.SIG_SETMASK, held)
+            broken = False
+            for path, parts in zip(args.recordings, tables):
+                if broken:
+                    # (The pool is broken: each of the rest is reported, not replayed.)
+                    yield "error", RecordingError(
+                        "not replayed: a worker process ended before it did (--jobs 1 "
+                        "replays in this process)", file=path).describe()
+                    continue
+                try:
+                    result = next(results)
+                except BrokenProcessPool:
+                    # A worker killed from outside (the system out of memory, ``kill``):
+                    # the recordings replayed before it keep their lines and table rows.
+                    broken = True
+                    yield "error", RecordingError(
+                        "its worker process ended without a result (killed from outside, "
+                        "or out of memory?)", file=path).describe()
+                    continue
                 if result[0] == "summary":
                     for kind, (file, _) in parts.items():
                         table = outputs[f"--{kind}"]
@@ -489,6 +540,7 @@ def _results_in_workers(args, overrides: dict[str, str], outputs: dict[str, Tabl
         finally:
             # A failure stops the run: what is queued is not replayed.
             pool.shutdown(wait=True, cancel_futures=True)
+            threading.excepthook = hook
     finally:
         if folder:
             shutil.rmtree(folder, ignore_errors=True)
