@@ -15,6 +15,7 @@ from typing import Callable
 from vade_replay import native
 from vade_replay.errors import (TERMINATED_RAISED, ConfigError, Terminated, VadeError,
                                 raise_terminated)
+from vade_replay.tables import remove_temps
 
 EXIT_OK, EXIT_DIVERGED, EXIT_UNUSABLE = 0, 1, 2
 EXIT_PIPE_CLOSED = 141
@@ -184,6 +185,7 @@ class _TermWatch:
                 return  # closed: the run is over
             if signal.SIGTERM in woken and not TERMINATED_RAISED.wait(_TERM_GRACE_S):
                 try:
+                    remove_temps()  # a review's or table's, half written
                     os.write(2, b"terminated (held in native code: ended at once)\n")
                 finally:
                     os._exit(EXIT_TERMINATED)

@@ -181,7 +181,9 @@ def main(argv: list[str] | None = None) -> int:
                           f"{quote(str(folder.parent))} {quote(folder.stem)})",
                           file=str(folder), field="--dir")
     if not folder.is_dir():
-        raise ConfigError("no such folder", file=str(folder), field="--dir")
+        # (A device or a pipe exists: "no such folder" misled, a user's trial.)
+        raise ConfigError("not a folder (a device or a pipe)" if folder.exists()
+                          else "no such folder", file=str(folder), field="--dir")
     sessions = sorted(folder.glob("*.json"))
     if not sessions:
         raise ConfigError("holds no session files (*.json)", file=str(folder), field="--dir")

@@ -1851,18 +1851,20 @@ def test_a_regeneration_whose_standard_output_fails_still_remakes_all_or_none(tm
             shutil.copy(RECORDINGS / f"{n}.mcap", tmp_path / f"{n}.mcap")
 
 
-def test_sigterm_not_taken_in_time_ends_the_run_at_once(monkeypatch):
+def test_sigterm_not_taken_in_time_ends_the_run_at_once(monkeypatch, tmp_path):
     """A review: a review's file writer stuck on a full disk held the main thread inside
     rerun's native flush, where Python's SIGTERM handler never runs, and SIGTERM, which
     used to end the process, no longer could. A watchdog woken by the signal ends the
     process (exit 143) when no Terminated was raised within the grace; none where one
-    was."""
+    was. Ended so, it removes the half-written review's or table's hidden temporary file
+    first (it was left beside the review's path)."""
     import os
     import signal
     import threading
 
     from vade_replay.cli import _common
     from vade_replay.errors import TERMINATED_RAISED
+    from vade_replay.tables import forget_temp, temp_beside
     ended = threading.Event()
     codes = []
 
@@ -1872,20 +1874,27 @@ def test_sigterm_not_taken_in_time_ends_the_run_at_once(monkeypatch):
     monkeypatch.setattr(_common.os, "_exit", end)
     monkeypatch.setattr(_common, "_TERM_GRACE_S", 0.2)
     previous = signal.signal(signal.SIGTERM, lambda *a: None)  # a handler that takes nothing
+    kept = ""
     try:
+        fd, half = temp_beside(tmp_path / "review.rrd")
+        os.close(fd)
         with _common._TermWatch():
             os.kill(os.getpid(), signal.SIGTERM)
             assert ended.wait(5.0)
         assert codes == [143]
+        assert not Path(half).exists()
         codes.clear()
         ended.clear()
+        fd, kept = temp_beside(tmp_path / "table.csv")
+        os.close(fd)
         with _common._TermWatch():
             TERMINATED_RAISED.set()  # as raise_terminated does
             os.kill(os.getpid(), signal.SIGTERM)
             assert not ended.wait(0.6)
-        assert codes == []
+        assert codes == [] and Path(kept).exists()  # the run's own ending removes it
     finally:
         signal.signal(signal.SIGTERM, previous)
+        forget_temp(kept)
 
 
 def test_standard_error_that_takes_nothing_or_closed_streams_keep_the_exit_code(tmp_path):

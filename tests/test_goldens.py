@@ -380,6 +380,14 @@ def test_a_folder_s_session_without_a_golden_is_named_by_its_own_fault(tmp_path)
     assert f"vade-goldens --check --dir {tmp_path} good)" in as_file.stderr
     remake = run_cli("vade-goldens", "--dir", str(tmp_path / "good.json"))
     assert f"(vade-goldens --dir {tmp_path} good)" in remake.stderr
+    # A device or a pipe is not "no such folder" (a user's trial); a missing one is.
+    import os
+    os.mkfifo(tmp_path / "pipe")
+    for given, why in ((os.devnull, "not a folder (a device or a pipe)"),
+                       (str(tmp_path / "pipe"), "not a folder (a device or a pipe)"),
+                       (str(tmp_path / "gone"), "no such folder")):
+        result = run_cli("vade-goldens", "--check", "--dir", given)
+        assert (result.returncode, result.stderr) == (2, f"error: {given}: --dir: {why}\n")
 
 
 def test_a_golden_without_its_session_is_named_not_skipped(tmp_path):

@@ -28,10 +28,16 @@ FRAME_TABLES: dict[str, tuple[tuple[str, ...], Callable[[str, FrameRecord, int],
     "events": (EVENT_COLUMNS, event_rows), "poses": (POSE_COLUMNS, pose_rows)}
 
 
+# The temporary files of ``temp_beside`` not yet moved over their targets or removed: a run
+# ended at once (``cli._common``'s SIGTERM watchdog, whose ``os._exit`` runs no ``finally``)
+# removes them first (``remove_temps``; a review found a review's left behind).
+_TEMPS: set[str] = set()
+
+
 def temp_beside(target: Path) -> tuple[int, str]:
     """A new temporary file beside ``target`` (open descriptor, path) with the mode a plain
     ``open()`` of ``target`` would give (mkstemp's is owner-only): what is written there is
-    moved over ``target`` when whole (a table, a review)."""
+    moved over ``target`` when whole (a table, a review), and then ``forget_temp``."""
     fd, temp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".partial", dir=target.parent)
     try:
         mask = os.umask(0)
@@ -41,7 +47,23 @@ def temp_beside(target: Path) -> tuple[int, str]:
         os.close(fd)
         os.unlink(temp)
         raise
+    _TEMPS.add(temp)
     return fd, temp
+
+
+def forget_temp(temp: str) -> None:
+    """``temp`` (of ``temp_beside``) has been moved over its target or removed."""
+    _TEMPS.discard(temp)
+
+
+def remove_temps() -> None:
+    """Remove every temporary file of ``temp_beside`` still there (a run ended at once)."""
+    for temp in list(_TEMPS):
+        try:
+            os.unlink(temp)
+        except OSError:
+            pass
+        _TEMPS.discard(temp)
 
 
 class TableError(ConfigError):
@@ -89,6 +111,7 @@ class TableFile:
             self.stream.close()
             if self.temp is not None:
                 os.replace(self.temp, self.target)
+                forget_temp(self.temp)
                 self.temp = None
         except OSError as exc:
             self.discard()
@@ -106,6 +129,7 @@ class TableFile:
                 os.unlink(self.temp)  # our own temporary file, never the user's path
             except OSError:
                 pass
+            forget_temp(self.temp)
             self.temp = None
 
 

@@ -38,7 +38,7 @@ import rerun.blueprint as rrb
 
 from vade_replay.errors import ConfigError
 from vade_replay.recording import in_place
-from vade_replay.tables import temp_beside
+from vade_replay.tables import forget_temp, temp_beside
 from vade_replay.frames import FrameRecord, PartSnapshot
 from vade_replay import spatial as sp
 
@@ -159,6 +159,7 @@ def write_review(
     finally:
         if staged != target:
             staged.unlink(missing_ok=True)
+            forget_temp(str(staged))
     return counts
 
 
