@@ -1269,6 +1269,27 @@ def test_a_mesh_in_other_units_than_the_session_is_warned_of_first(tmp_path, ext
         assert lines.index(mesh[0]) == 0  # before what it causes (inside the table, ...)
 
 
+def test_a_constraint_that_fits_no_mesh_drawn_in_millimetres_says_so(tmp_path):
+    """A CAD user's trial: a base part's mesh drawn in millimetres in a metre session, with
+    an axis constraint, was refused only as "check point, direction and radius" (a
+    correct constraint); the units warning, said before what the slip causes, never came,
+    the constraint being refused first. The error says what is too large."""
+    import trimesh
+    doc = json.loads((RECORDINGS / "shaft_placed.json").read_text())
+    base = trimesh.creation.box(extents=[300.0, 300.0, 20.0])
+    (tmp_path / "base.stl").write_bytes(base.export(file_type="stl"))
+    doc["base"]["shape"] = {"type": "mesh", "file": "base.stl"}
+    session = _write(tmp_path, doc)
+    result = run_cli("vade-record", str(session), "-o", str(tmp_path / "o.mcap"))
+    _assert_clean_error(result, "no base faces lie within the axis radius",
+                        "(the base part is 300 x 300 x 20 m across: a mesh drawn in "
+                        "millimetres? give its shape.units)")
+    doc["base"]["shape"]["units"] = "mm"  # right now: the same constraint, no such word
+    result = run_cli("vade-record", str(_write(tmp_path, doc)), "-o", str(tmp_path / "o.mcap"))
+    _assert_clean_error(result, "no base faces lie within the axis radius")
+    assert "millimetres" not in result.stderr
+
+
 @pytest.mark.parametrize("given", [None, "mm"])
 def test_a_mesh_child_of_a_compound_in_other_units_is_warned_of(tmp_path, given):
     """The same slip inside a compound shape (a block with a peg drawn in millimetres): the

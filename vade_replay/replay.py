@@ -41,8 +41,8 @@ from .frames import FrameRecord, TrackerFrame
 from .modes import Cause, Mode
 from .recording import (RecordedFrame, Recording, RecordingWriter, holds_recording, in_place,
                         left_partial, package_versions, partial_output, physics_metadata)
-from .scene import (LENGTH_FIELDS, PAPER_DEFAULTS, UNIT_TO_M, Scene, even_inertia_trace,
-                    physics_from_doc)
+from .scene import (LENGTH_FIELDS, MESH_LARGEST_M, PAPER_DEFAULTS, UNIT_TO_M, Scene,
+                    even_inertia_trace, physics_from_doc)
 from .session import (_DENSITY_RANGE, Session, load_schema, name_warnings, parse, strict_json,
                       validate_physics)
 from .spatial import Pose
@@ -1557,7 +1557,7 @@ def _sunk(collision: CollisionWorld, body, box, environment: list, gravity) -> \
 # A part or the base part, drawn by a mesh file without its own ``units``: larger
 # than this across is a mesh in other units than the session's (CAD exports in millimetres
 # into a metre session are 1000 times too large). (One too small is refused, scene.py.)
-_MESH_LARGEST_M = 5.0
+_MESH_LARGEST_M = MESH_LARGEST_M
 
 
 def mesh_scale_warnings(scene: Scene, doc: dict | None) -> list[str]:

@@ -631,6 +631,25 @@ def _feature(doc: dict, key: str, f: float) -> tuple[sp.Vec3, sp.Vec3]:
     return _vec(doc["point"], f), _vec(doc[key])
 
 
+# A part or the base part larger than this across is drawn in other units than the
+# session's (CAD exports in millimetres into a metre session are 1000 times too large):
+# ``replay.mesh_scale_warnings`` warns of it, and a constraint that does not fit says it.
+MESH_LARGEST_M = 5.0
+
+
+def _oversize(part: Body, base: Body, f: float) -> str:
+    """What a constraint's error adds where its part or base is too large to be a part of
+    an assembly (a CAD user's trial: a millimetre mesh in a metre session was told only to
+    check the constraint's point, direction and radius, the units warning never reached)."""
+    for body, which in ((base, "the base part"), (part, "the part")):
+        size = [body.bbox_max[k] - body.bbox_min[k] for k in range(3)]
+        if max(size) > MESH_LARGEST_M:
+            across = " x ".join(f"{extent / f:.3g}" for extent in size)
+            return (f" ({which} is {across} {_UNIT_NAMES.get(f, 'units')} across: a mesh "
+                    "drawn in millimetres? give its shape.units)")
+    return ""
+
+
 def _assembly(doc: dict, part: Body, base: Body, physics: Physics, f: float, *, where: str,
               file: str) -> cn.Assembly:
     """A part's ``assembly`` block: mates with the base and the final pose, in metres."""
@@ -678,13 +697,15 @@ def _assembly(doc: dict, part: Body, base: Body, physics: Physics, f: float, *, 
                 base_faces=np.asarray(base.faces), geometry_tol=physics.contact_tolerance,
                 coaxial_fit=physics.coaxial_fit)
         except ValueError as exc:
-            raise SessionError(str(exc), file=file, field=here) from None
+            raise SessionError(str(exc) + _oversize(part, base, f), file=file,
+                               field=here) from None
         if kind == "axis" and len(mate.base_feature_faces) == 0:
             raise SessionError("no base faces lie within the axis radius: check point, "
-                               "direction and radius", file=file, field=f"{here}.base")
-        if kind != "axis" and len(mate.base_feature_faces) == 0:
-            raise SessionError("no base faces lie in the plane: check point and normal",
+                               "direction and radius" + _oversize(part, base, f),
                                file=file, field=f"{here}.base")
+        if kind != "axis" and len(mate.base_feature_faces) == 0:
+            raise SessionError("no base faces lie in the plane: check point and normal"
+                               + _oversize(part, base, f), file=file, field=f"{here}.base")
         mates.append(mate)
     final = doc.get("final_pose")
     final_tol = doc.get("final_tolerance", {})
