@@ -436,6 +436,31 @@ def test_a_metre_session_read_as_inches_is_named_where_its_tube_does_not_close()
         make_session(doc, {"open.stl": open_mesh.export(file_type="stl")}).build_scene()
 
 
+@pytest.mark.parametrize("file_type", ["obj", "stl"])
+def test_triangles_naming_a_vertex_twice_are_dropped_from_a_closed_mesh(file_type):
+    """A CAD user's trial: a closed solid with three triangles that name one vertex twice
+    (an exporter's leftovers, no area) was refused as "not watertight" and sent to give
+    mass properties. They are dropped: the solid's mass and centre of mass are the clean
+    box's, a closed form, to round-off; a vertex only they named is gone."""
+    box = trimesh.creation.box(extents=[0.02, 0.03, 0.04])
+    vertices = np.vstack([box.vertices, [[0.5, 0.5, 0.5]]])  # named by a leftover alone
+    faces = np.vstack([box.faces, [[0, 0, 1], [2, 2, 2], [3, 4, 3], [8, 8, 5]]])
+    dirty = trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
+    doc = json.loads((RECORDINGS / "shaft_placed.json").read_text())
+    doc["parts"][0]["shape"] = {"type": "mesh", "file": f"dirty.{file_type}"}
+    doc["parts"][0]["density"] = 2700.0
+    doc["parts"][0].pop("assembly", None)
+    data = dirty.export(file_type=file_type)
+    scene = make_session(doc, {f"dirty.{file_type}": data.encode() if isinstance(data, str)
+                               else data}).build_scene()
+    part = scene.parts[0]
+    # (STL holds 32-bit coordinates: the box's corners to ~1e-7 relative.)
+    rel = 1e-6 if file_type == "stl" else 1e-12
+    assert part.mass_kg == pytest.approx(2700.0 * 0.02 * 0.03 * 0.04, rel=rel)
+    assert max(abs(c) for c in part.center_of_mass) < 0.04 * rel
+    assert max(part.bbox_max) < 0.03  # the leftover's vertex at 0.5 m is not the part's
+
+
 def test_one_keyframe_in_metres_among_millimetres_is_warned_of():
     """A mm session whose right hand has one keyframe written in metres: the hand would
     dive to the origin and back. Named with its time; the others are not."""

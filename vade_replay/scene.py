@@ -447,6 +447,17 @@ def _mesh_from_shape(shape: dict, length_factor: float, files: dict[str, bytes],
         # Named from the session that names it, as every other error of it is.
         raise SessionError(f"cannot read mesh {name!r}: {exc}", file=file,
                            field=f"{at}.file") from None
+    if isinstance(loaded, trimesh.Trimesh) and len(loaded.faces):
+        # A triangle that names one vertex twice (an exporter's leftover, or two corners
+        # merged as one by the loading) has no area and bounds nothing, but it made a
+        # closed solid "not watertight" (a CAD user's trial: sent to give mass properties).
+        corners = np.asarray(loaded.faces)
+        repeated = ((corners[:, 0] == corners[:, 1]) | (corners[:, 1] == corners[:, 2])
+                    | (corners[:, 0] == corners[:, 2]))
+        if repeated.any():
+            loaded = trimesh.Trimesh(vertices=loaded.vertices, faces=corners[~repeated],
+                                     process=False)
+            loaded.remove_unreferenced_vertices()  # (a vertex only such a face named)
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
         raise SessionError(f"mesh file {name!r} holds no triangles", file=file,
                            field=f"{at}.file")
