@@ -32,7 +32,8 @@ import fcl
 import numpy as np
 
 from . import spatial as sp
-from .arrays import dots, norms
+from . import support
+from .arrays import dots, norms, posed_points
 from .constraints import Mate, radial_extent
 from .scene import Body, Scene
 
@@ -252,6 +253,9 @@ class CollisionWorld:
         # Per (part, constraint, surface): the surface's faces its SKIP checks keep.
         self._rest_surfaces: dict[tuple[str, int, int], fcl.CollisionObject | None] = {}
         self._probe = fcl.Sphere(1e-9)
+        # Per (part, constraint, plane): the plane's point, unit normal, 2-D basis and its
+        # faces in 2-D (``support_gap``), made the first time a centre of mass is off them.
+        self._support_planes: dict[tuple[str, int, int], tuple] = {}
         # Per (part, mate, mode): the pair of triangles that last came within the tolerance
         # (``base_distance_within``), as one-triangle BVHs.
         self._witnesses: dict[tuple[str, int, CheckMode],
@@ -439,6 +443,34 @@ class CollisionWorld:
         self.stats["fcl_distance_queries"] += 1
         probe = fcl.CollisionObject(self._probe, fcl.Transform(np.array(point, dtype=np.float64)))
         return _distance(probe, feature)
+
+    def support_gap(self, part: str, mate: int, plane: int, foot: sp.Vec3,
+                    base_from_part: sp.Pose, tol: float) -> float:
+        """How far ``foot`` (the centre of mass dropped onto the plane mate's ``plane``, base
+        axes) lies outside the convex hull of where the part's corners on that plane (within
+        ``tol`` of it) meet the plane's faces: 0 within it, ``inf`` where nothing holds it
+        (``support.support_gap``). Where the foot is off the faces (``support_distance``)
+        over a hole or slot the part spans, it is held still."""
+        key = (part, mate, plane)
+        held = self._support_planes.get(key)
+        body = self._bodies[part]
+        if held is None:
+            assert body.assembly is not None
+            m = body.assembly.mates[mate]
+            point = np.array(m.base_points[plane], dtype=np.float64)
+            normal = np.array(sp.normalize(m.base_dirs[plane]), dtype=np.float64)
+            basis = support.plane_basis(normal)
+            triangles = support.plane_triangles(self._base_vertices,
+                                                self._mate(part, mate).base_feature_faces,
+                                                point, normal, tol, basis)
+            held = self._support_planes[key] = (point, normal, basis, triangles)
+        point, normal, basis, triangles = held
+        corners = posed_points(body.vertices, base_from_part) - point
+        on = corners[np.abs(corners @ normal) <= tol]
+        footprint = np.stack([on @ basis[0], on @ basis[1]], axis=1)
+        d = np.array(foot, dtype=np.float64) - point
+        return support.support_gap((float(d @ basis[0]), float(d @ basis[1])), footprint,
+                                   triangles)
 
     def sweep_clearance(self, part: str, mate: int, axis_point: sp.Vec3,
                         axis_rotation: sp.Quat) -> float:

@@ -2276,8 +2276,25 @@ def _off_margin(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, rel: sp.Pose,
         return f.collision.base_distance(body.name, m.mate, rel, KEEP_COPLANAR) - tol
     if mate.leave_when == "no_contact":
         return f.collision.base_distance(body.name, m.mate, rel, KEEP_COPLANAR) - tol
-    return max(f.collision.support_distance(body.name, m.mate, foot) - tol
-               for foot in _feet(mate, rel, body))
+    return max(_unsupported(f, body, m.mate, rel, plane, foot) - tol
+               for plane, foot in enumerate(_feet(mate, rel, body)))
+
+
+def _unsupported(f: _Frame, body: Body, mate: int, rel: sp.Pose, plane: int,
+                 foot: sp.Vec3) -> float:
+    """How far the centre of mass's ``foot`` on a plane mate's ``plane`` is from what holds
+    the part up: its distance to the plane's faces, or, where that is past the tolerance
+    (over the plate's edge, or over a hole or slot in it), its distance outside the hull of
+    where the part meets the faces (``CollisionWorld.support_gap``: a part spanning a slot
+    is held; a CAD user's trial saw a block "slide off" into one, 9 mm into the plate).
+    Past a convex face's edge the hull is no nearer than the faces: the faces' distance
+    stands, to the bit, where the hull adds nothing."""
+    tol = f.scene.physics.contact_tolerance
+    d = f.collision.support_distance(body.name, mate, foot)
+    if d <= tol:
+        return d
+    gap = f.collision.support_gap(body.name, mate, plane, foot, rel, tol)
+    return gap if gap < d - tol else d
 
 
 def _still_on_base(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, rel: sp.Pose,
@@ -2296,9 +2313,10 @@ def _still_on_base(f: _Frame, body: Body, mate: cn.Mate, m: OnBase, rel: sp.Pose
         return f.collision.base_distance(body.name, m.mate, rel, KEEP_COPLANAR) <= tol
     if mate.leave_when == "no_contact":
         return f.collision.base_distance(body.name, m.mate, rel, KEEP_COPLANAR) <= tol
-    # The part tips over the edge once its centre of mass is no longer above the face.
-    for foot in _feet(mate, rel, body):
-        if f.collision.support_distance(body.name, m.mate, foot) > tol:
+    # The part tips over the edge once its centre of mass is no longer above where it
+    # touches the face (over a hole or slot it spans, it is still held: ``_unsupported``).
+    for plane, foot in enumerate(_feet(mate, rel, body)):
+        if _unsupported(f, body, m.mate, rel, plane, foot) > tol:
             return False
     return True
 
