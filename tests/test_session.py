@@ -461,6 +461,26 @@ def test_triangles_naming_a_vertex_twice_are_dropped_from_a_closed_mesh(file_typ
     assert max(part.bbox_max) < 0.03  # the leftover's vertex at 0.5 m is not the part's
 
 
+def test_a_mesh_in_centimetres_and_a_binary_stl_named_obj():
+    """A CAD user's trial: ``shape.units`` took m, mm and in, not cm (as ``--set`` does);
+    a binary STL saved as .obj said "No module named 'charset_normalizer'"."""
+    box = trimesh.creation.box(extents=[2.0, 3.0, 4.0])  # cm
+    doc = json.loads((RECORDINGS / "shaft_placed.json").read_text())
+    doc["parts"][0]["shape"] = {"type": "mesh", "file": "b.stl", "units": "cm"}
+    doc["parts"][0]["density"] = 2700.0
+    doc["parts"][0].pop("assembly", None)
+    data = box.export(file_type="stl")
+    part = make_session(doc, {"b.stl": data}).build_scene().parts[0]
+    assert part.mass_kg == pytest.approx(2700.0 * 0.02 * 0.03 * 0.04, rel=1e-6)
+    doc["parts"][0]["shape"] = {"type": "mesh", "file": "b.obj"}
+    with pytest.raises(SessionError) as info:
+        make_session(doc, {"b.obj": data}).build_scene()
+    # (Where charset_normalizer is installed, trimesh's own error on the bytes is given.)
+    assert info.value.field == "parts[0].shape.file"
+    assert info.value.message.startswith("cannot read mesh 'b.obj'")
+    assert "No module named" not in info.value.message
+
+
 def test_one_keyframe_in_metres_among_millimetres_is_warned_of():
     """A mm session whose right hand has one keyframe written in metres: the hand would
     dive to the origin and back. Named with its time; the others are not."""

@@ -48,7 +48,7 @@ from .errors import SessionError
 from .massprops import MassProperties, check, parse_creo_report
 from .modes import Mode
 
-UNIT_TO_M = {"m": 1.0, "mm": 1e-3, "in": 0.0254}
+UNIT_TO_M = {"m": 1.0, "mm": 1e-3, "in": 0.0254, "cm": 0.01}  # (cm: a mesh file's only)
 DEFAULT_GRAVITY_M_S2 = (0.0, 0.0, -9.8)
 MESH_TYPES = {".stl": "stl", ".obj": "obj", ".glb": "glb", ".gltf": "gltf", ".ply": "ply",
               ".off": "off"}
@@ -443,6 +443,12 @@ def _mesh_from_shape(shape: dict, length_factor: float, files: dict[str, bytes],
     try:
         loaded = trimesh.load(io.BytesIO(files[name]), file_type=MESH_TYPES[suffix], force="mesh",
                               process=True)
+    except ImportError:
+        # trimesh reaching for an optional module to read what it could not (a CAD user's
+        # trial: a binary STL named .obj said "No module named 'charset_normalizer'").
+        raise SessionError(f"cannot read mesh {name!r} as {MESH_TYPES[suffix].upper()}: is "
+                           f"it a {suffix} file? (its name's ending gives the type)",
+                           file=file, field=f"{at}.file") from None
     except Exception as exc:  # trimesh raises many types for a corrupt file
         # Named from the session that names it, as every other error of it is.
         raise SessionError(f"cannot read mesh {name!r}: {exc}", file=file,
