@@ -106,6 +106,18 @@ def test_constant_angular_velocity_model_does_not_flip():
                          max_step_s=1 / 240)
     expected = sp.quat_from_rotvec(sp.scale(W0, 10.0))
     assert sp.quat_angle_between(later.world_from_principal, expected) < 1e-12
+    # From a turned start: the world angular velocity turns the start, R(t) = exp(w t) R0
+    # (a test audit: from the identity, R0 exp(w t) agreed, and no test told the two apart).
+    r0 = sp.quat_from_rotvec((0.7, -0.2, 0.4))
+    flight = free.start(t_ns=0, cm=sp.ZERO3, velocity=sp.ZERO3, omega_world=W0,
+                        world_from_part=sp.Pose(sp.ZERO3, r0),
+                        part_from_principal=sp.IDENTITY_QUAT, principal_moments=MOMENTS)
+    later = free.advance(flight, 10**10, model="constant_omega", moments=MOMENTS, order=4,
+                         max_step_s=1 / 240)
+    expected = sp.quat_mul(sp.quat_from_rotvec(sp.scale(W0, 10.0)), r0)
+    assert sp.quat_angle_between(later.world_from_principal, expected) < 1e-12
+    wrong = sp.quat_mul(r0, sp.quat_from_rotvec(sp.scale(W0, 10.0)))
+    assert sp.quat_angle_between(wrong, expected) > 0.1  # the two orders differ here
 
 
 def _euler_reference(moments, w0, seconds: float):

@@ -29,7 +29,7 @@ OWNERS = {
 }
 # Modules that must not touch files: the simulation core.
 NO_IO = ["spatial", "scene", "state", "modes", "events", "frames", "massprops", "step",
-         "collision", "codec", "constraints", "dynamics"]
+         "collision", "codec", "constraints", "dynamics", "support"]
 IO_NAMES = {"open", "Path", "read_bytes", "read_text", "write_bytes", "write_text"}
 
 

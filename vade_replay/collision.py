@@ -466,11 +466,11 @@ class CollisionWorld:
             held = self._support_planes[key] = (point, normal, basis, triangles)
         point, normal, basis, triangles = held
         corners = posed_points(body.vertices, base_from_part) - point
-        on = corners[np.abs(corners @ normal) <= tol]
-        footprint = np.stack([on @ basis[0], on @ basis[1]], axis=1)
-        d = np.array(foot, dtype=np.float64) - point
-        return support.support_gap((float(d @ basis[0]), float(d @ basis[1])), footprint,
-                                   triangles)
+        on = corners[np.abs(support.along(corners, normal)) <= tol]
+        footprint = np.stack([support.along(on, basis[0]), support.along(on, basis[1])], axis=1)
+        d = np.array(foot, dtype=np.float64)[None, :] - point
+        return support.support_gap((float(support.along(d, basis[0])[0]),
+                                    float(support.along(d, basis[1])[0])), footprint, triangles)
 
     def sweep_clearance(self, part: str, mate: int, axis_point: sp.Vec3,
                         axis_rotation: sp.Quat) -> float:

@@ -22,13 +22,23 @@ import math
 import numpy as np
 
 
+def along(points: np.ndarray, direction) -> np.ndarray:
+    """Each row of ``points`` (..., 3) dotted with ``direction``: three products summed in
+    order, as ``arrays.posed_points`` does (no BLAS, whose sums differ between machines:
+    ``tests/test_layers.py``)."""
+    return (points[..., 0] * direction[0] + points[..., 1] * direction[1]
+            + points[..., 2] * direction[2])
+
+
 def plane_basis(normal) -> tuple[np.ndarray, np.ndarray]:
     """Two unit vectors spanning the plane of ``normal`` (unit), orthogonal to each other."""
-    n = np.asarray(normal, dtype=np.float64)
-    helper = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    u = np.cross(n, helper)
-    u /= np.linalg.norm(u)
-    return u, np.cross(n, u)
+    n = [float(x) for x in normal]
+    h = (1.0, 0.0, 0.0) if abs(n[0]) < 0.9 else (0.0, 1.0, 0.0)
+    u = [n[1] * h[2] - n[2] * h[1], n[2] * h[0] - n[0] * h[2], n[0] * h[1] - n[1] * h[0]]
+    length = math.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
+    u = [x / length for x in u]
+    v = [n[1] * u[2] - n[2] * u[1], n[2] * u[0] - n[0] * u[2], n[0] * u[1] - n[1] * u[0]]
+    return np.array(u), np.array(v)
 
 
 def plane_triangles(vertices: np.ndarray, faces: np.ndarray, point, normal, tol: float,
@@ -39,10 +49,9 @@ def plane_triangles(vertices: np.ndarray, faces: np.ndarray, point, normal, tol:
         return np.zeros((0, 3, 2))
     corners = np.asarray(vertices, dtype=np.float64)[np.asarray(faces)]  # (n, 3, 3)
     rel = corners - np.asarray(point, dtype=np.float64)
-    heights = rel @ np.asarray(normal, dtype=np.float64)
-    flat = np.all(np.abs(heights) <= tol, axis=1)
+    flat = np.all(np.abs(along(rel, normal)) <= tol, axis=1)
     rel = rel[flat]
-    tri = np.stack([rel @ basis[0], rel @ basis[1]], axis=-1)  # (m, 3, 2)
+    tri = np.stack([along(rel, basis[0]), along(rel, basis[1])], axis=-1)  # (m, 3, 2)
     a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
     area2 = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
     tri = tri[area2 != 0.0]
