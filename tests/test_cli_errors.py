@@ -1262,6 +1262,7 @@ def test_a_mesh_in_other_units_than_the_session_is_warned_of_first(tmp_path, ext
     lines = [line for line in result.stderr.splitlines() if line.startswith("warning")]
     mesh = [line for line in lines if "peg.stl" in line]
     if warned is None:
+        assert result.returncode == 0, result.stderr  # (no warning from a run that failed)
         assert not mesh, result.stderr
     else:
         advice = "are those units right?" if given else "give shape.units"
@@ -1306,6 +1307,7 @@ def test_a_mesh_child_of_a_compound_in_other_units_is_warned_of(tmp_path, given)
     mesh = [line for line in result.stderr.splitlines()
             if line.startswith("warning") and "peg.stl" in line]
     if given:
+        assert result.returncode == 0, result.stderr
         assert not mesh, result.stderr
     else:
         assert len(mesh) == 1, result.stderr

@@ -530,3 +530,28 @@ def _tracked(scene, base, rel, slide_rate, rate, seconds):
         state, events = step(scene, world, state, inputs)
         yield n, state, events
 
+
+
+# --- the static test's edges (a test audit: no physics test told these apart) -------------
+
+@pytest.mark.parametrize("physics", [{}, {"slide_onset": "sub_step"},
+                                     {"slide_integrator": "euler"},
+                                     {"slide_integrator": "midpoint", "slide_onset": "sub_step"}])
+def test_dynamic_friction_above_static_never_drives_a_resting_part_uphill(physics):
+    """tan(14 deg) = 0.249 lies between f_s = 0.2 and f_d = 0.3: static friction is beaten,
+    but dynamic friction is more than gravity's pull along the plane, so the part at rest
+    does not move (it would slide uphill: friction reversing a motion never begun)."""
+    scene = plate_scene(physics, friction=(0.2, 0.3))
+    state = on_base(scene, tilt_x(-14.0), sp.Pose((0.0, 0.0, 0.04)))
+    for n, s, _ in run(scene, state, 60):
+        assert s.parts[0].motion.slide == (0.0, 0.0), (n, s.parts[0].motion.slide)
+
+
+def test_a_frictionless_level_plane_holds_a_resting_part_static():
+    """|g_t| = 0 is not more than f_s N = 0: the static test is strict (|g_t| > f_s N), so a
+    part at rest on a level frictionless plane stays ONBASESTATIC, no event."""
+    scene = plate_scene(friction=(0.0, 0.0))
+    state = on_base(scene, tilt_x(0.0), sp.Pose((0.0, 0.0, 0.04)))
+    for n, s, events in run(scene, state, 30):
+        assert not events, events
+        assert s.parts[0].mode is Mode.ONBASESTATIC
