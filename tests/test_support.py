@@ -16,11 +16,6 @@ from vade_replay import spatial as sp
 from vade_replay import support
 
 
-def _rect(x0, y0, x1, y1) -> list:
-    """A rectangle as two counter-clockwise triangles."""
-    return [[(x0, y0), (x1, y0), (x1, y1)], [(x0, y0), (x1, y1), (x0, y1)]]
-
-
 SQUARE = np.array([(-0.02, -0.02), (0.02, -0.02), (0.02, 0.02), (-0.02, 0.02)])
 
 
@@ -35,40 +30,47 @@ def test_the_hull_is_the_outer_corners_counter_clockwise():
 
 
 @pytest.mark.parametrize("foot, expected", [
-    ((0.0, 0.0), 0.0),          # over the slot, the block spanning it: held
-    ((0.0, 0.015), 0.0),        # over the plate beside it
-    ((0.0, 0.0199), 0.0),       # just inside the footprint
-    ((0.0, 0.03), 0.01),        # past the footprint's edge: 1 cm
-    ((0.03, 0.03), math.sqrt(2) * 0.01)])   # past its corner
-def test_a_footprint_spanning_a_slot_holds_its_centre_over_the_slot(foot, expected):
-    """A 40 mm square footprint over a plate with a 12 mm slot along x through its middle:
-    the plate on both sides holds it, so the hull of where they meet is the whole square;
-    the distance outside it is a closed form."""
-    plate = np.array(_rect(-0.1, 0.006, 0.1, 0.1) + _rect(-0.1, -0.1, 0.1, -0.006))
-    assert support.support_gap(foot, SQUARE, plate) == pytest.approx(expected, abs=1e-15)
+    ((0.0, 0.0), 0.0), ((0.0, 0.0199), 0.0), ((0.02, 0.02), 0.0),   # inside, on a corner
+    ((0.0, 0.03), 0.01), ((0.03, 0.03), math.sqrt(2) * 0.01)])      # past an edge, a corner
+def test_the_gap_is_the_distance_outside_the_hull(foot, expected):
+    assert support.support_gap(foot, SQUARE) == pytest.approx(expected, abs=1e-15)
 
 
-def test_past_a_plate_s_edge_the_gap_is_the_distance_to_the_edge():
-    """The plate ends at y = 0.005: the footprint meets it in y in [-0.02, 0.005]; a centre
-    of mass at y inside that is held, one past it is that far out."""
-    plate = np.array(_rect(-0.1, -0.1, 0.1, 0.005))
-    assert support.support_gap((0.0, 0.0), SQUARE, plate) == 0.0
-    assert support.support_gap((0.0, 0.012), SQUARE, plate) == pytest.approx(0.007, abs=1e-15)
-    # Wholly over a hole larger than the footprint: nothing holds it.
-    hole = np.array(_rect(-0.1, 0.05, 0.1, 0.1))
-    assert support.support_gap((0.0, 0.0), SQUARE, hole) == math.inf
-    # Touching the plane along an edge only (two corners): no area holds it.
-    assert support.support_gap((0.0, 0.0), SQUARE[:2], plate) == math.inf
+def test_a_segment_of_contact_holds_a_foot_on_it_and_none_holds_nothing():
+    segment = np.array([(-0.05, 0.0), (0.05, 0.0)])
+    assert support.support_gap((0.01, 0.0), segment) == pytest.approx(0.0, abs=1e-15)
+    assert support.support_gap((0.01, 0.003), segment) == pytest.approx(0.003, abs=1e-15)
+    assert support.support_gap((0.08, 0.0), segment) == pytest.approx(0.03, abs=1e-15)
+    assert support.support_gap((0.0, 0.0), np.zeros((0, 2))) == math.inf
 
 
-def test_triangles_of_the_plane_only_and_each_counter_clockwise():
-    vertices = np.array([(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 1e-6)], float)
-    faces = np.array([(0, 2, 1), (0, 1, 3), (1, 4, 2)])  # clockwise seen from +z; a wall; near
-    basis = support.plane_basis((0.0, 0.0, 1.0))
-    tris = support.plane_triangles(vertices, faces, (0, 0, 0), (0, 0, 1), 1e-5, basis)
-    assert len(tris) == 2  # the wall's corner (0, 0, 1) is off the plane
-    for a, b, c in tris:
-        assert (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]) > 0.0
+def test_crossings_of_segments():
+    a = np.array([[(-1.0, 0.0), (1.0, 0.0)], [(-1.0, 2.0), (1.0, 2.0)]])
+    b = np.array([[(0.5, -1.0), (0.5, 1.0)],     # crosses the first at (0.5, 0)
+                  [(-2.0, 1.0), (2.0, 1.0)],     # parallel to both: none
+                  [(1.0, 2.0), (1.0, 3.0)]])     # meets the second at its end
+    got = sorted(map(tuple, support.crossings(a, b)))
+    assert got == [(0.5, 0.0), (1.0, 2.0)]
+    assert len(support.crossings(a, np.zeros((0, 2, 2)))) == 0
+
+
+def test_the_edges_that_bound_a_box_s_face_and_a_rod_s_line_of_contact():
+    """A box's bottom: its four sides, not the diagonal between its two triangles. A rod
+    lying on a line of its facets: that line's edge (no face lies in the plane)."""
+    import trimesh
+    box = trimesh.creation.box(extents=[0.04, 0.06, 0.02])
+    edges = support.plane_edges(box.vertices, box.faces, (0, 0, -0.01), (0, 0, -1), 1e-6)
+    ends = box.vertices[edges]
+    assert len(edges) == 4 and np.all(ends[:, :, 2] == -0.01)
+    assert sorted(np.round(np.linalg.norm(ends[:, 0] - ends[:, 1], axis=1), 12)) == \
+        [0.04, 0.04, 0.06, 0.06]
+    rod = trimesh.creation.cylinder(radius=0.02, height=0.1, sections=48)
+    rod.apply_transform(trimesh.transformations.rotation_matrix(math.pi / 2, [1, 0, 0]))
+    low = rod.vertices[:, 2].min()
+    edges = support.plane_edges(rod.vertices, rod.faces, (0, 0, low), (0, 0, -1), 1e-6)
+    ends = rod.vertices[edges]
+    assert len(edges) == 1 and np.allclose(ends[0, :, 2], low, atol=1e-15)
+    assert abs(ends[0, 0, 1] - ends[0, 1, 1]) == pytest.approx(0.1, abs=1e-12)
 
 
 def _slotted(doc: dict, slot_y: float, width: float) -> dict:
@@ -132,3 +134,61 @@ def test_a_block_over_a_slot_wider_than_it_falls_in():
     assert len(off) == 1
     y = _in_base(sliding[-1]).position[1]
     assert -0.055 - 0.02 < y < -0.055 + 0.002  # the last frame on it: near the near edge
+
+
+def _rod_doc(slot: bool) -> tuple[dict, dict]:
+    """The golden's block replaced by a rod (r 20 mm, 100 mm long, 48 facets) lying along
+    its slide on a line of its facets (the next line 0.17 mm up, past the tolerance)."""
+    import trimesh
+    doc = json.loads((RECORDINGS / "plane_block_edge.json").read_text())
+    if slot:
+        doc = _slotted(doc, -0.08, 0.012)
+    r = 0.02
+    rod = trimesh.creation.cylinder(radius=r, height=0.1, sections=48)
+    rod.apply_transform(trimesh.transformations.rotation_matrix(math.pi / 2, [1, 0, 0]))
+    part = doc["parts"][0]
+    part["shape"] = {"type": "mesh", "file": "rod.stl"}
+    part["assembly"]["constraints"][0]["part"]["point"] = [0, 0, -r]
+    doc["tracker"]["devices"]["right_hand"][2]["position"] = [0.0, 0.16, 0.95 + 0.01 + r + 0.002]
+    return doc, {"rod.stl": rod.export(file_type="stl")}
+
+
+def test_a_rod_on_a_line_of_its_facets_spans_a_slot_as_the_block_does():
+    """A review: a rod whose contact with the plane is a line (no face lies on it) was
+    dropped into a slot it spans (no area held it) and flew 2.4 mm into the far side's top.
+    A segment of contact holds a centre of mass on it: the same frames as without the slot."""
+    plain = run_records(*_rod_doc(False))
+    slotted = run_records(*_rod_doc(True))
+    causes = [[(r.frame, e.cause) for r in run for e in r.events if hasattr(e, "to_mode")]
+              for run in (plain, slotted)]
+    assert causes[0] == causes[1] and ("slid_off_base" in {c for _, c in causes[1]})
+    for a, b in zip(plain, slotted):
+        assert np.allclose(a.parts[0].position, b.parts[0].position, atol=1e-12)
+
+
+def test_a_u_shaped_part_is_not_held_by_a_rib_under_its_notch():
+    """A review: a U-shaped part (two legs 5 mm wide, 45 mm apart) whose legs are over open
+    slots, with ribs under its bridge between them, was held up by the ribs, which its
+    legs never touch (the first version took the hull of its corners, not its faces). It
+    leaves the plane as it starts to slide, as without the ribs, and lands on the ribs."""
+    doc = json.loads((RECORDINGS / "plane_block_edge.json").read_text())
+    part = doc["parts"][0]
+    part["shape"] = {"type": "compound", "children": [
+        {"type": "box", "size": [0.005, 0.05, 0.02], "pose": {"position": [-0.0225, 0, -0.01]}},
+        {"type": "box", "size": [0.005, 0.05, 0.02], "pose": {"position": [0.0225, 0, -0.01]}},
+        {"type": "box", "size": [0.05, 0.05, 0.02], "pose": {"position": [0, 0, 0.01]}}]}
+    part["assembly"]["constraints"][0]["part"]["point"] = [0, 0, -0.02]
+
+    def box(x0, x1, y0, y1):
+        return {"type": "box", "size": [x1 - x0, y1 - y0, 0.02],
+                "pose": {"position": [(x0 + x1) / 2, (y0 + y1) / 2, 0.0]}}
+    wall = doc["base"]["shape"]["children"][1]
+    doc["base"]["shape"]["children"] = [box(-0.15, -0.03, -0.15, 0.13), box(0.03, 0.15, -0.15, 0.13),
+                                        box(-0.012, -0.006, -0.15, 0.13),
+                                        box(0.006, 0.012, -0.15, 0.13), wall]
+    records = run_records(doc)
+    changes = [(r.frame, e.cause) for r in records for e in r.events if hasattr(e, "to_mode")]
+    sliding = next(f for f, c in changes if c == "static_friction_exceeded")
+    assert (sliding, "slid_off_base") in changes  # at once: nothing holds its legs
+    landed = [r for r in records if r.parts[0].mode == "ONBASESTATIC" and r.frame > sliding]
+    assert landed and _in_base(landed[-1]).position[2] == pytest.approx(0.01, abs=2e-4)

@@ -447,30 +447,71 @@ class CollisionWorld:
     def support_gap(self, part: str, mate: int, plane: int, foot: sp.Vec3,
                     base_from_part: sp.Pose, tol: float) -> float:
         """How far ``foot`` (the centre of mass dropped onto the plane mate's ``plane``, base
-        axes) lies outside the convex hull of where the part's corners on that plane (within
-        ``tol`` of it) meet the plane's faces: 0 within it, ``inf`` where nothing holds it
-        (``support.support_gap``). Where the foot is off the faces (``support_distance``)
-        over a hole or slot the part spans, it is held still."""
+        axes) lies outside the convex hull of where the part's faces or edges in that plane
+        (within ``tol``) meet the plane's faces: 0 within it, ``inf`` where they do not meet
+        (``support``). Where the foot is off the faces (``support_distance``) over a hole or
+        a slot the part spans, it is held still."""
         key = (part, mate, plane)
         held = self._support_planes.get(key)
         body = self._bodies[part]
+        geometry = self._mate(part, mate)
         if held is None:
             assert body.assembly is not None
             m = body.assembly.mates[mate]
             point = np.array(m.base_points[plane], dtype=np.float64)
             normal = np.array(sp.normalize(m.base_dirs[plane]), dtype=np.float64)
             basis = support.plane_basis(normal)
-            triangles = support.plane_triangles(self._base_vertices,
-                                                self._mate(part, mate).base_feature_faces,
-                                                point, normal, tol, basis)
-            held = self._support_planes[key] = (point, normal, basis, triangles)
-        point, normal, basis, triangles = held
-        corners = posed_points(body.vertices, base_from_part) - point
-        on = corners[np.abs(support.along(corners, normal)) <= tol]
-        footprint = np.stack([support.along(on, basis[0]), support.along(on, basis[1])], axis=1)
-        d = np.array(foot, dtype=np.float64)[None, :] - point
-        return support.support_gap((float(support.along(d, basis[0])[0]),
-                                    float(support.along(d, basis[1])[0])), footprint, triangles)
+            base_faces = geometry.base_feature_faces
+            base_edges = self._base_vertices[support.plane_edges(
+                self._base_vertices, base_faces, point, normal, tol)]  # (n, 2, 3)
+            rel = base_edges - point
+            base_2d = np.stack([support.along(rel, basis[0]), support.along(rel, basis[1])],
+                               axis=-1)
+            corners = np.unique(base_edges.reshape(-1, 3), axis=0)
+            part_point = np.array(m.part_points[plane], dtype=np.float64)
+            part_normal = np.array(sp.normalize(m.part_dirs[plane]), dtype=np.float64)
+            part_faces = np.asarray(body.faces)
+            part_edges = np.asarray(body.vertices)[support.plane_edges(
+                body.vertices, part_faces, part_point, part_normal, tol)]
+            near = np.abs(support.along(np.asarray(body.vertices)[part_faces] - part_point,
+                                        part_normal)) <= tol
+            flat = part_faces[np.all(near, axis=1)]
+            model = _bvh_of(np.asarray(body.vertices), flat) if len(flat) else None
+            held = self._support_planes[key] = (
+                point, basis, base_2d, corners,
+                part_edges, None if model is None else fcl.CollisionObject(model, self._identity))
+        point, basis, base_2d, corners, part_edges, part_flat = held
+
+        def flat2(points: np.ndarray) -> np.ndarray:
+            rel = points - point
+            return np.stack([support.along(rel, basis[0]), support.along(rel, basis[1])],
+                            axis=-1)
+        if len(part_edges) == 0:
+            return math.inf
+        posed = posed_points(part_edges.reshape(-1, 3), base_from_part)
+        part_2d = flat2(posed).reshape(-1, 2, 2)
+        lo, hi = part_2d.reshape(-1, 2).min(axis=0) - tol, part_2d.reshape(-1, 2).max(axis=0) + tol
+        found = [support.crossings(part_2d, base_2d)]
+        feature = geometry.base_feature()
+        if feature is not None:
+            # The part's corners on the plane's faces.
+            mine = np.unique(posed, axis=0)
+            inside = [p for p in mine if _distance(fcl.CollisionObject(
+                self._probe, fcl.Transform(p)), feature) <= tol]
+            if inside:
+                found.append(flat2(np.array(inside)))
+        if part_flat is not None and len(corners):
+            # The plane's corners under the part's faces (asked in the part's frame).
+            theirs = flat2(corners)
+            box = np.all((theirs >= lo) & (theirs <= hi), axis=1)
+            if box.any():
+                back = posed_points(corners[box], base_from_part.inverse())
+                inside = [i for i, p in zip(np.nonzero(box)[0], back) if _distance(
+                    fcl.CollisionObject(self._probe, fcl.Transform(p)), part_flat) <= tol]
+                if inside:
+                    found.append(theirs[inside])
+        d = flat2(np.array(foot, dtype=np.float64)[None, :])[0]
+        return support.support_gap((float(d[0]), float(d[1])), np.concatenate(found))
 
     def sweep_clearance(self, part: str, mate: int, axis_point: sp.Vec3,
                         axis_rotation: sp.Quat) -> float:
