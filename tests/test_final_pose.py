@@ -237,3 +237,19 @@ def test_with_block_cut_both_the_turn_stops_at_the_contact_and_is_not_searched_b
     the part would have turned through after it in frame 6 is not reached in that frame."""
     placed = _disc_into_a_collar(0.092, block_cut="both")
     assert placed and placed[0] > 6
+
+
+@pytest.mark.parametrize("above, placed", [(0.0005, True), (0.0015, False)])
+def test_released_near_its_final_pose_is_placed_only_within_the_distance(above, placed):
+    """(A test audit: doubling the final pose's distance tolerance went unseen.)
+    shaft_placed's sleeve let go at rest 0.10 m up the shaft (base frame), its final pose
+    ``above`` higher (it falls away from it), tolerance 1 mm: placed at the release within
+    the tolerance, never outside it."""
+    doc = copy.deepcopy(json.loads((RECORDINGS / "shaft_placed.json").read_text()))
+    doc["tracker"]["duration_s"] = 1.6
+    assembly = doc["parts"][0]["assembly"]
+    assembly["final_pose"]["position"] = [0, 0, 0.10 + above]
+    assembly["final_tolerance"]["distance"] = 0.001
+    causes = [e.cause for r in run_records(doc) for e in r.events if e.kind == "ModeChanged"]
+    assert ("released_at_final_pose" in causes) == placed, causes
+    assert "reached_final_pose" not in causes, causes
