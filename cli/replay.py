@@ -77,6 +77,10 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--poses", metavar="OUT.csv",
                    help="write the run's trajectories as a table: a row per frame and part "
                         "(and the base): mode, position, rotation xyzw, velocities")
+    p.add_argument("--tracker", metavar="OUT.csv",
+                   help="write the recorded tracker inputs as a tracker log (a row per frame "
+                        "and device) that a session's tracker.csv reads: the same hand "
+                        "motion recorded again through another session (a changed design)")
     p.add_argument("--rerun", metavar="OUT.rrd",
                    help="write a rerun review: timeline, states, trajectories, divergence")
     p.add_argument("--spawn", action="store_true",
@@ -329,7 +333,8 @@ def _is_stdout(path: str) -> bool:
 
 def _table_options(args) -> list[tuple[str, str]]:
     return [(option, path) for option, path in (("--csv", args.csv), ("--events", args.events),
-                                                ("--poses", args.poses)) if path]
+                                                ("--poses", args.poses),
+                                                ("--tracker", args.tracker)) if path]
 
 
 def _frame_kinds(outputs: dict[str, TableFile]) -> list[str]:

@@ -281,6 +281,11 @@ EVENT_COLUMNS = ("recording", "frame", "time_s", "kind", "part", "cause", "hand"
                  "to_mode", "other", "contact_time_s", "vx", "vy", "vz", "wx", "wy", "wz")
 POSE_COLUMNS = ("recording", "frame", "time_s", "part", "mode", "x", "y", "z", "qx", "qy",
                 "qz", "qw", "vx", "vy", "vz", "wx", "wy", "wz")
+# A tracker log as a session's ``tracker.csv`` reads it (``csv_units`` m, ``csv_time_unit``
+# ns, ``csv_quaternion_order`` xyzw; the first two columns are left aside): the recorded
+# inputs, to run the same hand motion through another session (a changed design).
+TRACKER_COLUMNS = ("recording", "frame", "time", "device", "x", "y", "z", "q0", "q1", "q2",
+                   "q3", "grip")
 
 
 class Departure:
@@ -519,6 +524,19 @@ def pose_rows(recording: str, record: FrameRecord, first_time_ns: int) -> list[d
                      "part": s.name, "mode": s.mode, "x": p[0], "y": p[1], "z": p[2],
                      "qx": q[0], "qy": q[1], "qz": q[2], "qw": q[3], "vx": v[0], "vy": v[1],
                      "vz": v[2], "wx": w[0], "wy": w[1], "wz": w[2]})
+    return rows
+
+
+def tracker_rows(recording: str, record: FrameRecord, first_time_ns: int) -> list[dict]:
+    """A row of ``TRACKER_COLUMNS`` for each device sampled in the frame: its time in ns
+    and its numbers as Python writes them (``repr``, read back to the same bits)."""
+    rows = []
+    for device, sample in record.inputs.devices:
+        p, q = sample.position, sample.rotation_xyzw
+        rows.append({"recording": recording, "frame": record.frame, "time": record.time_ns,
+                     "device": device, "x": p[0], "y": p[1], "z": p[2], "q0": q[0],
+                     "q1": q[1], "q2": q[2], "q3": q[3],
+                     "grip": "" if sample.grip is None else int(sample.grip)})
     return rows
 
 

@@ -18,14 +18,16 @@ from typing import Callable, TextIO
 from .errors import ConfigError
 from .frames import FrameRecord
 from .recording import in_place
-from .replay import EVENT_COLUMNS, POSE_COLUMNS, event_rows, pose_rows
+from .replay import (EVENT_COLUMNS, POSE_COLUMNS, TRACKER_COLUMNS, event_rows, pose_rows,
+                     tracker_rows)
 
 # A table's path that means standard output (the run's own lines then go to stderr).
 STDOUT = "-"
 
 # Table kind -> its columns and the rows of one frame.
 FRAME_TABLES: dict[str, tuple[tuple[str, ...], Callable[[str, FrameRecord, int], list[dict]]]] = {
-    "events": (EVENT_COLUMNS, event_rows), "poses": (POSE_COLUMNS, pose_rows)}
+    "events": (EVENT_COLUMNS, event_rows), "poses": (POSE_COLUMNS, pose_rows),
+    "tracker": (TRACKER_COLUMNS, tracker_rows)}
 
 
 # The temporary files of ``temp_beside`` not yet moved over their targets or removed: a run
