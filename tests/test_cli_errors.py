@@ -1291,6 +1291,41 @@ def test_a_constraint_that_fits_no_mesh_drawn_in_millimetres_says_so(tmp_path):
     assert "millimetres" not in result.stderr
 
 
+def test_bodies_of_a_mesh_are_counted():
+    """``replay.body_count``: faces that share a vertex are one body."""
+    import trimesh
+    from vade_replay.replay import body_count
+    box = trimesh.creation.box(extents=[0.02, 0.02, 0.02])
+    tube = trimesh.creation.annulus(r_min=0.01, r_max=0.02, height=0.03, sections=64)
+    three = trimesh.util.concatenate([box, box.copy().apply_translation([0.05, 0, 0]),
+                                      tube.copy().apply_translation([0, 0.1, 0])])
+    assert [body_count(m.faces) for m in (box, tube, three)] == [1, 1, 3]
+    # A long chain of faces (labels spread end to end): still one.
+    rod = trimesh.creation.box(extents=[1.0, 0.001, 0.001]).subdivide().subdivide().subdivide()
+    assert body_count(rod.faces) == 1
+
+
+@pytest.mark.parametrize("apart", [None, 0.05])
+def test_a_part_s_mesh_of_two_bodies_is_warned_of(tmp_path, apart):
+    """A CAD user's trial: two pegs exported as one STL were taken as one part (twice the
+    mass, its centre of mass in the air between them) without a word."""
+    import trimesh
+    peg = trimesh.creation.box(extents=[0.02, 0.02, 0.04])
+    mesh = peg if apart is None else trimesh.util.concatenate(
+        [peg, peg.copy().apply_translation([apart, 0, 0])])
+    (tmp_path / "pegs.stl").write_bytes(mesh.export(file_type="stl"))
+    doc = _doc()
+    doc["parts"][0]["shape"] = {"type": "mesh", "file": "pegs.stl"}
+    result = run_cli("vade-record", str(_write(tmp_path, doc)), "-o", str(tmp_path / "o.mcap"))
+    assert result.returncode == 0, result.stderr
+    warned = [line for line in result.stderr.splitlines() if "separate bodies" in line]
+    if apart is None:
+        assert not warned
+    else:
+        assert len(warned) == 1 and "'pegs.stl' holds 2 separate bodies" in warned[0]
+        assert "parts[0].shape" in warned[0]
+
+
 @pytest.mark.parametrize("given", [None, "mm"])
 def test_a_mesh_child_of_a_compound_in_other_units_is_warned_of(tmp_path, given):
     """The same slip inside a compound shape (a block with a peg drawn in millimetres): the

@@ -1629,6 +1629,50 @@ def mesh_scale_warnings(scene: Scene, doc: dict | None) -> list[str]:
     return out
 
 
+def body_count(faces: np.ndarray) -> int:
+    """How many separate bodies a mesh's faces make (faces that share a vertex are one):
+    labels spread along the faces' edges to the least, with pointer jumping, in numpy (the
+    commands keep scipy, whose graph search trimesh uses, out of their imports)."""
+    faces = np.asarray(faces, dtype=np.int64)
+    if len(faces) == 0:
+        return 0
+    a = faces.ravel()
+    b = faces[:, [1, 2, 0]].ravel()
+    label = np.arange(int(faces.max()) + 1)
+    while True:
+        least = np.minimum(label[a], label[b])
+        spread = label.copy()
+        np.minimum.at(spread, a, least)
+        np.minimum.at(spread, b, least)
+        spread = spread[spread]
+        if np.array_equal(spread, label):
+            break
+        label = spread
+    return len(np.unique(label[a]))
+
+
+def mesh_body_warnings(scene: Scene, doc: dict | None) -> list[str]:
+    """A part drawn by one mesh file that holds several separate bodies (a CAD user's
+    trial: an assembly exported as one STL made one part of twice the mass, its centre of
+    mass in the air between them, and nothing said so). A compound's children are separate
+    on purpose, and the base and the environment are fixtures: only a part's own file."""
+    out = []
+    bodies = {b.name: b for b in scene.parts}
+    for i, item in enumerate((doc or {}).get("parts") or []):
+        if not isinstance(item, dict) or not isinstance(item.get("shape"), dict):
+            continue
+        shape, body = item["shape"], bodies.get(str(item.get("name")))
+        if shape.get("type") != "mesh" or body is None:
+            continue
+        count = body_count(body.faces)
+        if count > 1:
+            out.append(f"parts[{i}].shape: the mesh {shape.get('file')!r} holds {count} "
+                       f"separate bodies, taken as one rigid part of {body.mass_kg:.4g} kg "
+                       "with one centre of mass between them: an assembly exported as one "
+                       "file? give each part a file of its own")
+    return out
+
+
 def _unitless_meshes(shape, at: str) -> list[tuple[str, str]]:
     """The mesh files of a shape (itself, or the children of a compound, at any depth)
     that give no ``units``: ``(where, file)``."""
@@ -1818,7 +1862,7 @@ def scene_warnings(scene: Scene, collision: CollisionWorld,
     index = {b.name: listed.get(b.name, k) for k, b in enumerate(scene.parts)}
     # A mesh in other units first: what follows from it (a misfit, a part inside the base
     # or the table) is warned of after it.
-    out = mesh_scale_warnings(scene, doc)
+    out = mesh_scale_warnings(scene, doc) + mesh_body_warnings(scene, doc)
     counters = dict(collision.stats)  # a run's counters count the run's own queries
     for body in scene.parts:
         i = index[body.name]
