@@ -2293,7 +2293,7 @@ def _unsupported(f: _Frame, body: Body, mate: int, rel: sp.Pose, plane: int,
     d = f.collision.support_distance(body.name, mate, foot)
     if d <= tol:
         return d
-    gap = f.collision.support_gap(body.name, mate, plane, foot, rel, tol)
+    gap = f.collision.support_gap(body.name, mate, plane, foot, rel, tol, d - tol)
     return gap if gap < d - tol else d
 
 
