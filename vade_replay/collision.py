@@ -461,31 +461,38 @@ class CollisionWorld:
         assert body.assembly is not None
         m = body.assembly.mates[mate]
         if held is None:
-            # The plane's side, to ask where the foot is first: its faces' boundary and
-            # their corners, and the hull of them all.
+            # The plane's outline first: the hull of its faces' corners, to ask where the
+            # foot is (past a plate's outer edge that settles it).
             point = np.array(m.base_points[plane], dtype=np.float64)
             normal = np.array(sp.normalize(m.base_dirs[plane]), dtype=np.float64)
             basis = support.plane_basis(normal)
-            base_edges = self._base_vertices[support.plane_edges(
-                self._base_vertices, geometry.base_feature_faces, point, normal, tol)]
-            rel = base_edges - point
-            base_2d = np.stack([support.along(rel, basis[0]), support.along(rel, basis[1])],
-                               axis=-1)  # (n, 2, 2)
-            corners = np.unique(base_edges.reshape(-1, 3), axis=0)
-            outline = support.convex_hull(base_2d.reshape(-1, 2)) if len(base_2d) \
-                else np.zeros((0, 2))
-            held = self._support_planes[key] = [point, basis, base_2d, corners, outline,
-                                                None, None]
-        point, basis, base_2d, corners, outline = held[0], held[1], held[2], held[3], held[4]
+            faces = geometry.base_feature_faces
+            rel = self._base_vertices[faces] - point  # (n, 3, 3)
+            rel = rel[np.all(np.abs(support.along(rel, normal)) <= tol, axis=1)].reshape(-1, 3)
+            outline = support.convex_hull(np.stack(
+                [support.along(rel, basis[0]), support.along(rel, basis[1])], axis=-1))
+            held = self._support_planes[key] = [point, basis, outline, None, None, None,
+                                                None]
+        point, basis, outline = held[0], held[1], held[2]
 
         def flat2(points: np.ndarray) -> np.ndarray:
             rel = points - point
             return np.stack([support.along(rel, basis[0]), support.along(rel, basis[1])],
                             axis=-1)
-        d = flat2(np.array(foot, dtype=np.float64)[None, :])[0]
-        foot_2d = (float(d[0]), float(d[1]))
-        if support.support_gap(foot_2d, outline) >= beyond:
+        rel_foot = [foot[0] - float(point[0]), foot[1] - float(point[1]),
+                    foot[2] - float(point[2])]
+        foot_2d = (sum(r * float(b) for r, b in zip(rel_foot, basis[0])),
+                   sum(r * float(b) for r, b in zip(rel_foot, basis[1])))
+        if support.distance_outside(foot_2d, outline) >= beyond:
             return math.inf
+        if held[3] is None:
+            # The plane's boundary in 2-D and its corners.
+            normal = np.array(sp.normalize(m.base_dirs[plane]), dtype=np.float64)
+            base_edges = self._base_vertices[support.plane_edges(
+                self._base_vertices, geometry.base_feature_faces, point, normal, tol)]
+            held[3] = flat2(base_edges.reshape(-1, 3)).reshape(-1, 2, 2)
+            held[4] = np.unique(base_edges.reshape(-1, 3), axis=0)
+        base_2d, corners = held[3], held[4]
         if held[5] is None:
             # The part's side, the first time the plane's outline does not settle it: its
             # boundary (or line) in the plane, and its faces there as a BVH.

@@ -103,7 +103,13 @@ def crossings(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def convex_hull(points: np.ndarray) -> np.ndarray:
     """The convex hull of 2-D ``points`` (k, 2), counter-clockwise, without collinear
     points (Andrew's monotone chain); fewer than 3 rows where the points are collinear."""
-    pts = np.unique(np.asarray(points, dtype=np.float64), axis=0)  # sorted by x, then y
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    if len(pts) == 0:
+        return pts
+    pts = pts[np.lexsort((pts[:, 1], pts[:, 0]))]  # by x, then y
+    keep = np.ones(len(pts), dtype=bool)
+    keep[1:] = np.any(pts[1:] != pts[:-1], axis=1)  # (np.unique on rows is ~10x slower)
+    pts = pts[keep]
     if len(pts) < 3:
         return pts
 
@@ -123,7 +129,7 @@ def convex_hull(points: np.ndarray) -> np.ndarray:
     return np.array(lower[:-1] + upper[:-1])
 
 
-def _distance_outside(point, hull: np.ndarray) -> float:
+def distance_outside(point, hull: np.ndarray) -> float:
     """How far 2-D ``point`` lies outside convex ``hull`` (counter-clockwise; 0 inside or on
     it); a hull of one or two points is that point or segment."""
     px, py = float(point[0]), float(point[1])
@@ -157,4 +163,4 @@ def support_gap(foot, held: np.ndarray) -> float:
     points is a segment of contact (a rod on a line of its facets), held on it."""
     if len(held) == 0:
         return math.inf
-    return _distance_outside(foot, convex_hull(held))
+    return distance_outside(foot, convex_hull(held))
