@@ -1,4 +1,5 @@
-"""The tables a replay writes for a study (``vade-replay --csv``, ``--events``, ``--poses``, ``--tracker``).
+"""The tables a replay writes for a study (``vade-replay --csv``, ``--events``, ``--poses``,
+``--tracker``).
 
 A table is written into a temporary file beside it and moved over it only when the whole
 run is done, so that a run that fails leaves the old file (or none), never a table of half
