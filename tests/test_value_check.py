@@ -281,3 +281,44 @@ def test_a_snapshot_that_comes_back_after_frames_checked_by_value_is_listed():
     doc["transforms"] = []
     assert checker.check(frames[2], [(codec.PARTS_TOPIC, _dumps(left_out)),
                                      (codec.FOXGLOVE_TOPIC, _dumps(doc))]) == reference[2]
+
+
+def test_a_frame_s_last_event_and_a_zero_s_sign_are_checked_end_to_end(tmp_path: Path):
+    """(A test audit: the check by value skipping a frame's last event message, or taking
+    -0.0 for 0.0, was caught by one test alone.) A recording whose frame's last event says
+    another hand, and one whose resting velocity 0.0 is written -0.0 (a sign bit, a value
+    JSON keeps): each is a divergence, named at its frame."""
+    src = RECORDINGS / "drop_on_table.mcap"
+    frames = list(Recording(src).frames())
+    grab = next(f for f in frames if len(f.derived) > 3)
+    last_topic = grab.derived[-1][0]
+    count = sum(1 for f in frames if f.inputs.frame < grab.inputs.frame
+                for t, _ in f.derived if t == last_topic)
+
+    def other_hand(topic: str, index: int, data: bytes) -> bytes:
+        if topic == last_topic and index == count:
+            doc = json.loads(data)
+            doc["hand"] = "left_hand"
+            return _dumps(doc)
+        return data
+
+    rest = next(f for f in frames if f.inputs.frame > 0
+                and json.loads(f.derived[0][1])["parts"]
+                and json.loads(f.derived[0][1])["parts"][0]["linear_velocity"] == [0, 0, 0])
+    parts_index = sum(1 for f in frames if f.inputs.frame < rest.inputs.frame
+                      for t, _ in f.derived if t == codec.PARTS_TOPIC)
+
+    def signed_zero(topic: str, index: int, data: bytes) -> bytes:
+        if topic == codec.PARTS_TOPIC and index == parts_index:
+            doc = json.loads(data)
+            doc["parts"][0]["linear_velocity"][2] = -0.0
+            return _dumps(doc)
+        return data
+
+    for name, edit, frame in (("hand", other_hand, grab.inputs.frame),
+                              ("zero", signed_zero, rest.inputs.frame)):
+        out = tmp_path / f"{name}.mcap"
+        copy_recording(src, out, edit)
+        summary = replay(Recording(out))
+        assert not summary.match, name
+        assert summary.first_divergence["frame"] == frame, (name, summary.first_divergence)
