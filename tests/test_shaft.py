@@ -794,3 +794,27 @@ def test_a_swing_held_off_level_stays_held_where_the_reference_turns():
             assert s.parts[0].mode is Mode.ONBASESTATIC, n
             assert s.parts[0].motion.angle == held_at
     assert held_at is not None and abs(held_at - stops[k]) < 1e-6, (held_at, stops[k])
+
+
+def test_a_swing_stopped_by_the_base_comes_to_rest_against_it_and_stays():
+    """(A test audit: a turn stopped by the base counted as starting to turn went unseen;
+    every blocked-to-rest test was a slide.) test_stress's arm swinging down into its rail
+    without sliding: once the rail stops it, gravity presses it into the rail, so it is
+    ONBASESTATIC (blocked_by_base, the only change) and stays at the contact's angle."""
+    import strategies as S
+    from test_stress import _arm_on_a_shaft_over_a_rail
+    from vade_replay.collision import CollisionWorld
+    from vade_replay.step import step
+
+    scene, world = _arm_on_a_shaft_over_a_rail()
+    state = world(0.0, 1.2, 0.0, -6.0)
+    collision = CollisionWorld(scene)
+    causes, modes, angles = [], [], []
+    for n in range(1, 60):
+        state, events = step(scene, collision, state,
+                             S.tracker_frame(n, n * 10**9 // 60, state.base_pose))
+        causes += [e.cause for e in events if e.kind == "ModeChanged"]
+        modes.append(state.parts[0].mode)
+        angles.append(state.parts[0].motion.angle)
+    assert causes == ["blocked_by_base"], causes
+    assert modes[-1] is Mode.ONBASESTATIC and len(set(angles[-30:])) == 1
