@@ -11,6 +11,7 @@ from __future__ import annotations
 import io
 import json
 import math
+import re
 import sys
 from dataclasses import dataclass, field, fields, replace
 from typing import Final
@@ -440,6 +441,13 @@ def _mesh_from_shape(shape: dict, length_factor: float, files: dict[str, bytes],
     if suffix not in MESH_TYPES:
         raise SessionError(f"unsupported mesh type {suffix!r} (use {', '.join(MESH_TYPES)})",
                            file=file, field=f"{at}.file")
+    bad = _non_finite_numbers(files[name], MESH_TYPES[suffix])
+    if bad:
+        # (trimesh's processing drops the faces that name such a vertex: a CAD user's trial
+        # saw a part called not watertight for it, and a base lose five faces silently.)
+        raise SessionError(f"mesh {name!r} holds {bad} coordinate{'' if bad == 1 else 's'} that "
+                           f"{'is' if bad == 1 else 'are'} not finite (NaN or infinite): "
+                           "fix the export", file=file, field=f"{at}.file")
     try:
         loaded = trimesh.load(io.BytesIO(files[name]), file_type=MESH_TYPES[suffix], force="mesh",
                               process=True)
@@ -473,6 +481,33 @@ def _mesh_from_shape(shape: dict, length_factor: float, files: dict[str, bytes],
     # Scaled element by element (trimesh's apply_scale multiplies by a matrix, in BLAS).
     return trimesh.Trimesh(vertices=np.asarray(loaded.vertices) * mesh_factor,
                            faces=loaded.faces, process=False)
+
+
+_NON_FINITE = re.compile(rb"(?<![A-Za-z_])[-+]?(nan|inf|infinity)(?![A-Za-z_])", re.IGNORECASE)
+
+
+def _non_finite_numbers(data: bytes, kind: str) -> int:
+    """How many numbers of a mesh file are NaN or infinite, where that is told without
+    reading it as a mesh: a binary STL's coordinates, or the words of a text file (an ASCII
+    STL, OBJ, OFF or PLY). 0 for the others (a binary PLY, glTF)."""
+    if kind == "stl" and not data[:5].lower() == b"solid" and len(data) >= 84:
+        count = int.from_bytes(data[80:84], "little")
+        if len(data) == 84 + 50 * count:
+            records = np.frombuffer(data, dtype=np.dtype([("normal", "<f4", 3),
+                                                           ("corners", "<f4", 9),
+                                                           ("attribute", "<u2")]),
+                                    count=count, offset=84)
+            return int(np.count_nonzero(~np.isfinite(records["corners"])))
+        return 0
+    if kind in ("stl", "obj"):
+        # Their vertex lines only ("v x y z", "vertex x y z"): a name or a comment may hold
+        # such a word.
+        key = b"v " if kind == "obj" else b"vertex"
+        return sum(len(_NON_FINITE.findall(line)) for line in data.splitlines()
+                   if line.lstrip().startswith(key))
+    if kind == "off" or (kind == "ply" and b"format ascii" in data[:200]):
+        return len(_NON_FINITE.findall(data))
+    return 0
 
 
 def even_inertia_trace(vertices: np.ndarray, faces: np.ndarray, density: float) -> float:
