@@ -974,6 +974,7 @@ def test_a_rotation_that_is_not_a_unit_quaternion_is_warned_of():
         "the unit quaternion of its direction; a typo?")
 
 
+@pytest.mark.filterwarnings("ignore:invalid value encountered:RuntimeWarning")  # (the export)
 @pytest.mark.parametrize("file_type", ["stl", "obj", "off", "ply"])
 def test_a_mesh_file_with_a_non_finite_coordinate_is_refused_by_name(file_type):
     """A CAD user's trial: a vertex of NaN lost the faces that named it in trimesh's
