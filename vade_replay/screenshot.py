@@ -86,7 +86,9 @@ def screenshot_from_rrd(
         from playwright.sync_api import Error as PlaywrightError
         from playwright.sync_api import sync_playwright
     except ImportError as exc:
-        raise ViewerScreenshotError("playwright is not installed: pip install 'vade_replay[viewer]'") from exc
+        raise ViewerScreenshotError(
+            "playwright is not installed: pip install -e '.[viewer]' in the project's folder "
+            "(or pip install 'vade_replay[viewer]')") from exc
     chromium_path = chromium_path or find_chromium()
     if chromium_path is None:
         raise ViewerScreenshotError("no Chromium found: apt-get install chromium (or set VADE_CHROMIUM)")
