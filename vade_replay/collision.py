@@ -139,6 +139,41 @@ class _Surface:
     flat_known: bool = False
 
 
+@dataclass(eq=False)
+class _SupportDetail:
+    """What ``CollisionWorld.support_gap`` asks where a plane's outline does not settle it:
+    the plane's faces' boundary (2-D segments) and corners (3-D, base axes), the part's
+    boundary (or line) in its own plane (3-D segments, part frame), and the part's faces
+    there (a BVH's object, or None)."""
+
+    boundary: np.ndarray
+    corners: np.ndarray
+    part_edges: np.ndarray
+    part_flat: fcl.CollisionObject | None
+
+
+@dataclass(eq=False)
+class _SupportPlane:
+    """A plane mate's plane as ``CollisionWorld.support_gap`` asks it: its point, unit
+    normal and 2-D axes, the hull of its faces' corners (2-D), and the rest once needed."""
+
+    point: np.ndarray
+    normal: np.ndarray
+    basis: tuple[np.ndarray, np.ndarray]
+    outline: np.ndarray
+    detail: _SupportDetail | None = None
+
+    def flat2(self, points: np.ndarray) -> np.ndarray:
+        """Points (n, 3), base axes, in the plane's 2-D coordinates."""
+        return _flat2(points, self.point, self.basis)
+
+
+def _flat2(points: np.ndarray, point: np.ndarray,
+           basis: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    rel = points - point
+    return np.stack([support.along(rel, basis[0]), support.along(rel, basis[1])], axis=-1)
+
+
 # Faces meeting at a fold under this are one surface (a plane meshed finely, a cylinder's
 # side); the base's edges and corners are sharper.
 _FOLD_DEG = 30.0
@@ -253,10 +288,9 @@ class CollisionWorld:
         # Per (part, constraint, surface): the surface's faces its SKIP checks keep.
         self._rest_surfaces: dict[tuple[str, int, int], fcl.CollisionObject | None] = {}
         self._probe = fcl.Sphere(1e-9)
-        # Per (part, constraint, plane): the plane's point, 2-D basis, boundary in 2-D, its
-        # corners, their hull, and the part's edges and faces in the plane (``support_gap``),
+        # Per (part, constraint, plane): what ``support_gap`` asks of it (``_SupportPlane``),
         # made the first time a centre of mass is off the plane's faces.
-        self._support_planes: dict[tuple[str, int, int], list] = {}
+        self._support_planes: dict[tuple[str, int, int], _SupportPlane] = {}
         # Per (part, mate, mode): the pair of triangles that last came within the tolerance
         # (``base_distance_within``), as one-triangle BVHs.
         self._witnesses: dict[tuple[str, int, CheckMode],
@@ -454,12 +488,11 @@ class CollisionWorld:
         a slot the part spans, it is held still. ``inf`` at once where the foot is
         ``beyond`` or farther outside the hull of all the plane's faces (past a plate's
         outer edge: nothing of the part's can hold it nearer; ~20 us, not ~0.4 ms)."""
-        key = (part, mate, plane)
-        held = self._support_planes.get(key)
         body = self._bodies[part]
         geometry = self._mate(part, mate)
         assert body.assembly is not None
         m = body.assembly.mates[mate]
+        held = self._support_planes.get((part, mate, plane))
         if held is None:
             # The plane's outline first: the hull of its faces' corners, to ask where the
             # foot is (past a plate's outer edge that settles it).
@@ -467,71 +500,60 @@ class CollisionWorld:
             normal = np.array(sp.normalize(m.base_dirs[plane]), dtype=np.float64)
             basis = support.plane_basis(normal)
             faces = geometry.base_feature_faces
-            rel = self._base_vertices[faces] - point  # (n, 3, 3)
-            rel = rel[np.all(np.abs(support.along(rel, normal)) <= tol, axis=1)].reshape(-1, 3)
-            outline = support.convex_hull(np.stack(
-                [support.along(rel, basis[0]), support.along(rel, basis[1])], axis=-1))
-            held = self._support_planes[key] = [point, basis, outline, None, None, None,
-                                                None]
-        point, basis, outline = held[0], held[1], held[2]
-
-        def flat2(points: np.ndarray) -> np.ndarray:
-            rel = points - point
-            return np.stack([support.along(rel, basis[0]), support.along(rel, basis[1])],
-                            axis=-1)
-        rel_foot = [foot[0] - float(point[0]), foot[1] - float(point[1]),
-                    foot[2] - float(point[2])]
-        foot_2d = (sum(r * float(b) for r, b in zip(rel_foot, basis[0])),
-                   sum(r * float(b) for r, b in zip(rel_foot, basis[1])))
-        if support.distance_outside(foot_2d, outline) >= beyond:
+            flat = faces[support.in_plane(self._base_vertices, faces, point, normal, tol)]
+            outline = support.convex_hull(_flat2(self._base_vertices[flat.ravel()], point,
+                                                 basis))
+            held = self._support_planes[(part, mate, plane)] = _SupportPlane(
+                point, normal, basis, outline)
+        rel = [foot[0] - float(held.point[0]), foot[1] - float(held.point[1]),
+               foot[2] - float(held.point[2])]
+        foot_2d = (sum(r * float(b) for r, b in zip(rel, held.basis[0])),
+                   sum(r * float(b) for r, b in zip(rel, held.basis[1])))
+        if support.distance_outside(foot_2d, held.outline) >= beyond:
             return math.inf
-        if held[3] is None:
-            # The plane's boundary in 2-D and its corners.
-            normal = np.array(sp.normalize(m.base_dirs[plane]), dtype=np.float64)
-            base_edges = self._base_vertices[support.plane_edges(
-                self._base_vertices, geometry.base_feature_faces, point, normal, tol)]
-            held[3] = flat2(base_edges.reshape(-1, 3)).reshape(-1, 2, 2)
-            held[4] = np.unique(base_edges.reshape(-1, 3), axis=0)
-        base_2d, corners = held[3], held[4]
-        if held[5] is None:
-            # The part's side, the first time the plane's outline does not settle it: its
-            # boundary (or line) in the plane, and its faces there as a BVH.
+        detail = held.detail
+        if detail is None:
+            # The plane's boundary and corners, and the part's boundary (or line) and faces
+            # in its plane: the first time the outline does not settle it.
+            edges = self._base_vertices[support.plane_edges(
+                self._base_vertices, geometry.base_feature_faces, held.point, held.normal,
+                tol)]
+            vertices, faces = np.asarray(body.vertices), np.asarray(body.faces)
             part_point = np.array(m.part_points[plane], dtype=np.float64)
             part_normal = np.array(sp.normalize(m.part_dirs[plane]), dtype=np.float64)
-            part_faces = np.asarray(body.faces)
-            held[5] = np.asarray(body.vertices)[support.plane_edges(
-                body.vertices, part_faces, part_point, part_normal, tol)]
-            near = np.abs(support.along(np.asarray(body.vertices)[part_faces] - part_point,
-                                        part_normal)) <= tol
-            flat = part_faces[np.all(near, axis=1)]
-            model = _bvh_of(np.asarray(body.vertices), flat) if len(flat) else None
-            held[6] = () if model is None else (fcl.CollisionObject(model, self._identity),)
-        part_edges = held[5]
-        part_flat = held[6][0] if held[6] else None
-        if len(part_edges) == 0:
+            flat = faces[support.in_plane(vertices, faces, part_point, part_normal, tol)]
+            model = _bvh_of(vertices, flat) if len(flat) else None
+            detail = held.detail = _SupportDetail(
+                held.flat2(edges.reshape(-1, 3)).reshape(-1, 2, 2),
+                np.unique(edges.reshape(-1, 3), axis=0),
+                vertices[support.plane_edges(vertices, faces, part_point, part_normal, tol)],
+                None if model is None else fcl.CollisionObject(model, self._identity))
+        if len(detail.part_edges) == 0:
             return math.inf
-        posed = posed_points(part_edges.reshape(-1, 3), base_from_part)
-        part_2d = flat2(posed).reshape(-1, 2, 2)
-        lo, hi = part_2d.reshape(-1, 2).min(axis=0) - tol, part_2d.reshape(-1, 2).max(axis=0) + tol
-        found = [support.crossings(part_2d, base_2d)]
-        feature = geometry.base_feature()
-        if feature is not None:
-            # The part's corners on the plane's faces.
-            mine = np.unique(posed, axis=0)
-            inside = [p for p in mine if _distance(fcl.CollisionObject(
-                self._probe, fcl.Transform(p)), feature) <= tol]
-            if inside:
-                found.append(flat2(np.array(inside)))
-        if part_flat is not None and len(corners):
+        posed = posed_points(detail.part_edges.reshape(-1, 3), base_from_part)
+        part_2d = held.flat2(posed).reshape(-1, 2, 2)
+        found = [support.crossings(part_2d, detail.boundary)]
+        # The part's corners on the plane's faces.
+        inside = [p for p in np.unique(posed, axis=0)
+                  if self.support_distance(part, mate, (float(p[0]), float(p[1]),
+                                                        float(p[2]))) <= tol]
+        if inside:
+            found.append(held.flat2(np.array(inside)))
+        if detail.part_flat is not None and len(detail.corners):
             # The plane's corners under the part's faces (asked in the part's frame).
-            theirs = flat2(corners)
-            box = np.all((theirs >= lo) & (theirs <= hi), axis=1)
-            if box.any():
-                back = posed_points(corners[box], base_from_part.inverse())
-                inside = [i for i, p in zip(np.nonzero(box)[0], back) if _distance(
-                    fcl.CollisionObject(self._probe, fcl.Transform(p)), part_flat) <= tol]
-                if inside:
-                    found.append(theirs[inside])
+            theirs = held.flat2(detail.corners)
+            flat_2d = part_2d.reshape(-1, 2)
+            box = np.all((theirs >= flat_2d.min(axis=0) - tol)
+                         & (theirs <= flat_2d.max(axis=0) + tol), axis=1)
+            under = []
+            for i, p in zip(np.nonzero(box)[0],
+                            posed_points(detail.corners[box], base_from_part.inverse())):
+                self.stats["fcl_distance_queries"] += 1
+                if _distance(fcl.CollisionObject(self._probe, fcl.Transform(p)),
+                             detail.part_flat) <= tol:
+                    under.append(i)
+            if under:
+                found.append(theirs[under])
         return support.support_gap(foot_2d, np.concatenate(found))
 
     def sweep_clearance(self, part: str, mate: int, axis_point: sp.Vec3,

@@ -41,8 +41,8 @@ from .frames import FrameRecord, TrackerFrame
 from .modes import Cause, Mode
 from .recording import (RecordedFrame, Recording, RecordingWriter, holds_recording, in_place,
                         left_partial, package_versions, partial_output, physics_metadata)
-from .scene import (LENGTH_FIELDS, MESH_LARGEST_M, PAPER_DEFAULTS, UNIT_TO_M, Scene,
-                    even_inertia_trace, physics_from_doc)
+from .scene import (LENGTH_FIELDS, PAPER_DEFAULTS, UNIT_TO_M, Scene, even_inertia_trace,
+                    oversize_across, physics_from_doc)
 from .session import (_DENSITY_RANGE, Session, load_schema, name_warnings, parse, strict_json,
                       validate_physics)
 from .spatial import Pose
@@ -1572,10 +1572,6 @@ def _sunk(collision: CollisionWorld, body, box, environment: list, gravity) -> \
     return (s, which) if s > _INSIDE_BASE_M else None
 
 
-# A part or the base part, drawn by a mesh file without its own ``units``: larger
-# than this across is a mesh in other units than the session's (CAD exports in millimetres
-# into a metre session are 1000 times too large). (One too small is refused, scene.py.)
-_MESH_LARGEST_M = MESH_LARGEST_M
 
 
 def mesh_scale_warnings(scene: Scene, doc: dict | None) -> list[str]:
@@ -1601,10 +1597,9 @@ def mesh_scale_warnings(scene: Scene, doc: dict | None) -> list[str]:
         given = _meshes_with_units(shape, f"{where}.shape")
         if not (meshes or given) or body is None:
             continue
-        size = [body.bbox_max[k] - body.bbox_min[k] for k in range(3)]
-        if max(size) <= _MESH_LARGEST_M:
+        across = oversize_across(body, UNIT_TO_M[units])
+        if across is None:
             continue
-        across = " x ".join(f"{extent / UNIT_TO_M[units]:.3g}" for extent in size)
         if not meshes:
             # Every mesh gives its units, and the part is still that large (an engineer's
             # trial: an STL drawn in mm given "units": "m" made a 50 m pin of 4e7 kg,

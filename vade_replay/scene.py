@@ -686,7 +686,17 @@ def _feature(doc: dict, key: str, f: float) -> tuple[sp.Vec3, sp.Vec3]:
 # A part or the base part larger than this across is drawn in other units than the
 # session's (CAD exports in millimetres into a metre session are 1000 times too large):
 # ``replay.mesh_scale_warnings`` warns of it, and a constraint that does not fit says it.
+# (One too small is refused: ``_OPEN_WHEN_SMALL_M``.)
 MESH_LARGEST_M = 5.0
+
+
+def oversize_across(body: Body, f: float) -> str | None:
+    """A body's extents in a session's units (``f``: metres a unit), "a x b x c", where it is
+    over ``MESH_LARGEST_M`` across; None where it is not."""
+    size = [body.bbox_max[k] - body.bbox_min[k] for k in range(3)]
+    if max(size) <= MESH_LARGEST_M:
+        return None
+    return " x ".join(f"{extent / f:.3g}" for extent in size)
 
 
 def _oversize(part: Body, base: Body, f: float) -> str:
@@ -694,9 +704,8 @@ def _oversize(part: Body, base: Body, f: float) -> str:
     an assembly (a CAD user's trial: a millimetre mesh in a metre session was told only to
     check the constraint's point, direction and radius, the units warning never reached)."""
     for body, which in ((base, "the base part"), (part, "the part")):
-        size = [body.bbox_max[k] - body.bbox_min[k] for k in range(3)]
-        if max(size) > MESH_LARGEST_M:
-            across = " x ".join(f"{extent / f:.3g}" for extent in size)
+        across = oversize_across(body, f)
+        if across is not None:
             return (f" ({which} is {across} {_UNIT_NAMES.get(f, 'units')} across: a mesh "
                     "drawn in millimetres? give its shape.units)")
     return ""

@@ -49,6 +49,13 @@ def plane_basis(normal) -> tuple[np.ndarray, np.ndarray]:
     return np.array(u), np.array(v)
 
 
+def in_plane(vertices: np.ndarray, faces: np.ndarray, point, normal, tol: float) -> np.ndarray:
+    """Which of ``faces`` lie in the plane: every corner within ``tol`` of it (a mask)."""
+    near = np.abs(along(np.asarray(vertices, dtype=np.float64)
+                        - np.asarray(point, dtype=np.float64), normal)) <= tol
+    return np.all(near[np.asarray(faces, dtype=np.int64)], axis=1)
+
+
 def plane_edges(vertices: np.ndarray, faces: np.ndarray, point, normal,
                 tol: float) -> np.ndarray:
     """The edges (vertex index pairs, (n, 2)) that bound what of a mesh lies in the plane:
@@ -62,7 +69,7 @@ def plane_edges(vertices: np.ndarray, faces: np.ndarray, point, normal,
         return np.zeros((0, 2), dtype=np.int64)
     near = np.abs(along(np.asarray(vertices, dtype=np.float64)
                         - np.asarray(point, dtype=np.float64), normal)) <= tol
-    flat = np.all(near[faces], axis=1)
+    flat = np.all(near[faces], axis=1)  # (``in_plane``, with ``near`` kept for the edges)
     edges = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]),
                     axis=1)
     in_flat = np.concatenate([flat, flat, flat])
