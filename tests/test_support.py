@@ -1,6 +1,7 @@
 """What holds a part up on a plane: the hull of where it meets the plane's faces
-(``vade_replay.support``), and a block sliding over a slot it spans (a CAD user's trial:
-it "slid off" into the slot and rested 9 mm inside the plate)."""
+(``vade_replay.support``), a block sliding over a slot it spans (a CAD user's trial:
+it "slid off" into the slot and rested 9 mm inside the plate), and a part whose centre of
+mass overhangs its footprint over a groove under its arm."""
 
 from __future__ import annotations
 
@@ -42,6 +43,19 @@ def test_a_segment_of_contact_holds_a_foot_on_it_and_none_holds_nothing():
     assert support.support_gap((0.01, 0.003), segment) == pytest.approx(0.003, abs=1e-15)
     assert support.support_gap((0.08, 0.0), segment) == pytest.approx(0.03, abs=1e-15)
     assert support.support_gap((0.0, 0.0), np.zeros((0, 2))) == math.inf
+
+
+@pytest.mark.parametrize("point, nearest", [
+    ((0.005, -0.01), (0.005, -0.01)),                       # inside: itself
+    ((0.0, 0.03), (0.0, 0.02)), ((0.03, 0.03), (0.02, 0.02)),  # past an edge, a corner
+    ((-0.05, 0.001), (-0.02, 0.001))])
+def test_the_hull_s_point_nearest_a_foot(point, nearest):
+    d, x, y = support.nearest_in_hull(point, support.convex_hull(SQUARE))
+    assert (x, y) == pytest.approx(nearest, abs=1e-15)
+    assert d == pytest.approx(math.dist(point, nearest), abs=1e-15)
+    assert d == support.distance_outside(point, support.convex_hull(SQUARE))
+    d, x, y = support.nearest_in_hull((0.08, 0.01), np.array([(-0.05, 0.0), (0.05, 0.0)]))
+    assert (d, x, y) == pytest.approx((math.hypot(0.03, 0.01), 0.05, 0.0), abs=1e-15)
 
 
 def test_crossings_of_segments():
@@ -192,3 +206,90 @@ def test_a_u_shaped_part_is_not_held_by_a_rib_under_its_notch():
     assert (sliding, "slid_off_base") in changes  # at once: nothing holds its legs
     landed = [r for r in records if r.parts[0].mode == "ONBASESTATIC" and r.frame > sliding]
     assert landed and _in_base(landed[-1]).position[2] == pytest.approx(0.01, abs=2e-4)
+
+
+def _l_part(doc: dict) -> dict:
+    """``plane_block_edge``'s block made an L: a foot 50 x 50 x 20 mm on the plane and an arm
+    100 mm long over it, reaching 75 mm past the foot on +x. Its centre of mass is at
+    x = 33.3 mm in the part's frame, 8.3 mm past its footprint (nothing here tips a part:
+    on a plate it slides as the block does)."""
+    doc = copy.deepcopy(doc)
+    doc["parts"][0]["shape"] = {"type": "compound", "children": [
+        {"type": "box", "size": [0.05, 0.05, 0.02], "pose": {"position": [0, 0, -0.01]}},
+        {"type": "box", "size": [0.1, 0.05, 0.02], "pose": {"position": [0.05, 0, 0.01]}}]}
+    return doc
+
+
+def _grooved(doc: dict, x0: float, x1: float) -> dict:
+    """The plate with a groove from x0 to x1 (base frame) along its whole length (y)."""
+    doc = copy.deepcopy(doc)
+    plate, wall = doc["base"]["shape"]["children"]
+    assert plate["size"] == [0.3, 0.3, 0.02] and "pose" not in plate
+
+    def box(a, b):
+        return {"type": "box", "size": [b - a, 0.3, 0.02],
+                "pose": {"position": [(a + b) / 2, 0.0, 0.0]}}
+    doc["base"]["shape"]["children"] = [box(-0.15, x0), box(x1, 0.15), wall]
+    return doc
+
+
+def test_an_overhanging_part_slides_over_a_groove_under_its_arm_as_over_the_plate():
+    """An L-shaped part whose centre of mass overhangs its footprint, on a plate with a
+    12 mm groove under its centre of mass (x 28-40 mm) and not under its footprint (x up
+    to 25 mm). It "slid off" into the groove as it started to slide, fell with its foot
+    through the top face it had left, and rested 19.9 mm inside the plate: the hull of
+    contact (its footprint) never holds a centre of mass off it. Its footprint wholly on
+    the faces now holds it as the faces under its centre of mass do: the same frames as
+    without the groove to the bit until it leaves, round-off after (its leaving instant is
+    found by a root of a different distance), its bottom on the plate's top while it
+    slides, and it leaves in the frame its centre of mass passes the plate's edge
+    (y = -0.15), not 25 mm on where its footprint's far edge does."""
+    doc = _l_part(json.loads((RECORDINGS / "plane_block_edge.json").read_text()))
+    plain, plain_off, _ = _slide(doc)
+    grooved, off, sliding = _slide(_grooved(doc, 0.028, 0.040))
+    assert off == plain_off and len(off) == 1
+    assert [(r.frame, e.cause) for r in grooved for e in r.events if hasattr(e, "to_mode")] \
+        == [(r.frame, e.cause) for r in plain for e in r.events if hasattr(e, "to_mode")]
+    assert len(sliding) >= 15
+    for r in sliding:
+        assert _in_base(r).position[2] == pytest.approx(0.03, abs=1e-9)
+    for a, b in zip(plain, grooved):
+        if a.frame < off[0]:
+            assert a.parts[0].position == b.parts[0].position
+        assert np.allclose(a.parts[0].position, b.parts[0].position, rtol=0, atol=1e-8)
+    before, leaving = (next(r for r in grooved if r.frame == k) for k in (off[0] - 1, off[0]))
+    assert _in_base(before).position[1] > -0.15 > _in_base(leaving).position[1]
+    assert grooved[-1].parts[0].mode == "STATIC"  # on the table, below the plate
+
+
+def test_an_overhanging_part_whose_footprint_is_cut_by_the_groove_leaves():
+    """The other side: a groove (x 15-45 mm) under its centre of mass and under 10 mm of its
+    footprint leaves the footprint's point nearest the centre of mass 10 mm off what holds
+    it, and it leaves the plate as it starts to slide."""
+    doc = _l_part(json.loads((RECORDINGS / "plane_block_edge.json").read_text()))
+    records, off, sliding = _slide(_grooved(doc, 0.015, 0.045))
+    changes = [(r.frame, e.cause) for r in records for e in r.events if hasattr(e, "to_mode")]
+    started = next(f for f, c in changes if c == "static_friction_exceeded")
+    assert off == [started]
+
+
+def test_an_overhanging_part_leaves_a_plate_s_edge_when_its_footprint_does():
+    """The L's arm along its slide (toward the plate's edge, y = -0.15): its centre of mass
+    passes the edge 33 mm before its foot's front edge does. Held while its footprint is
+    wholly on the plate, as on the plate (its centre of mass used to decide: it left as
+    that passed the edge, and landed on the plate again the next frame), it leaves in the
+    frame the footprint's point nearest its centre of mass, the front edge, passes the
+    plate's edge, and falls to the table."""
+    doc = json.loads((RECORDINGS / "plane_block_edge.json").read_text())
+    doc["parts"][0]["shape"] = {"type": "compound", "children": [
+        {"type": "box", "size": [0.05, 0.05, 0.02], "pose": {"position": [0, 0, -0.01]}},
+        {"type": "box", "size": [0.05, 0.1, 0.02], "pose": {"position": [0, -0.05, 0.01]}}]}
+    records, off, sliding = _slide(doc)
+    assert len(off) == 1
+    before, leaving = (next(r for r in records if r.frame == k) for k in (off[0] - 1, off[0]))
+    front = -0.025  # the foot's front edge, part frame (its centre of mass at y = -0.0333)
+    assert _in_base(before).position[1] + front > -0.15 > _in_base(leaving).position[1] + front
+    assert _in_base(before).position[1] - 0.0333 < -0.15  # its centre of mass past the edge
+    changes = [c for r in records for e in r.events if hasattr(e, "to_mode")
+               for c in [e.cause] if r.frame > off[0]]
+    assert changes == ["hit_environment"]

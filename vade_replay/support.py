@@ -139,10 +139,16 @@ def convex_hull(points: np.ndarray) -> np.ndarray:
 def distance_outside(point, hull: np.ndarray) -> float:
     """How far 2-D ``point`` lies outside convex ``hull`` (counter-clockwise; 0 inside or on
     it); a hull of one or two points is that point or segment."""
+    return nearest_in_hull(point, hull)[0]
+
+
+def nearest_in_hull(point, hull: np.ndarray) -> tuple[float, float, float]:
+    """``distance_outside`` and the point of ``hull`` nearest 2-D ``point`` (``point``
+    itself inside or on it): (distance, x, y); (inf, x, y) of ``point`` for no hull."""
     px, py = float(point[0]), float(point[1])
     n = len(hull)
     if n == 0:
-        return math.inf
+        return math.inf, px, py
     if n >= 3:
         inside = True
         for i in range(n):
@@ -151,16 +157,18 @@ def distance_outside(point, hull: np.ndarray) -> float:
                 inside = False
                 break
         if inside:
-            return 0.0
-    best = math.inf
+            return 0.0, px, py
+    best, qx, qy = math.inf, px, py
     for i in range(n if n >= 3 else max(n - 1, 1)):
         (ax, ay), (bx, by) = hull[i], hull[(i + 1) % n]
         dx, dy = bx - ax, by - ay
         length2 = dx * dx + dy * dy
         t = 0.0 if length2 == 0.0 else min(1.0, max(0.0, ((px - ax) * dx + (py - ay) * dy)
                                                       / length2))
-        best = min(best, math.hypot(px - ax - t * dx, py - ay - t * dy))
-    return best
+        h = math.hypot(px - ax - t * dx, py - ay - t * dy)
+        if h < best:
+            best, qx, qy = h, float(ax + t * dx), float(ay + t * dy)
+    return best, qx, qy
 
 
 def support_gap(foot, held: np.ndarray) -> float:
