@@ -487,9 +487,11 @@ _NON_FINITE = re.compile(rb"(?<![A-Za-z_])[-+]?(nan|inf|infinity)(?![A-Za-z_])",
 
 
 def _non_finite_numbers(data: bytes, kind: str) -> int:
-    """How many numbers of a mesh file are NaN or infinite, where that is told without
-    reading it as a mesh: a binary STL's coordinates, or the words of a text file (an ASCII
-    STL, OBJ, OFF or PLY). 0 for the others (a binary PLY, glTF)."""
+    """How many numbers of a mesh file are NaN or infinite: a binary STL's or binary PLY's
+    coordinates read as numbers where the file lays them out, the words of a text file (an
+    ASCII STL, OBJ, OFF or PLY), a glTF's or GLB's vertex positions as trimesh's own reader
+    gives them before any processing. 0 where that cannot be told (the mesh's loading then
+    says what is wrong with the file)."""
     if kind == "stl" and not data[:5].lower() == b"solid" and len(data) >= 84:
         count = int.from_bytes(data[80:84], "little")
         if len(data) == 84 + 50 * count:
@@ -507,7 +509,88 @@ def _non_finite_numbers(data: bytes, kind: str) -> int:
                    if line.lstrip().startswith(key))
     if kind == "off" or (kind == "ply" and b"format ascii" in data[:200]):
         return len(_NON_FINITE.findall(data))
+    if kind == "ply":
+        return _binary_ply_non_finite(data)
+    if kind in ("glb", "gltf"):
+        return _gltf_non_finite(data, kind)
     return 0
+
+
+# A binary PLY's scalar property types (trimesh's names, the specification's and the wild's).
+_PLY_TYPES: Final = {"char": "i1", "uchar": "u1", "short": "i2", "ushort": "u2", "int": "i4",
+                     "uint": "u4", "float": "f4", "double": "f8", "int8": "i1", "uint8": "u1",
+                     "int16": "i2", "uint16": "u2", "int32": "i4", "uint32": "u4",
+                     "int64": "i8", "uint64": "u8", "float16": "f2", "float32": "f4",
+                     "float64": "f8"}
+
+
+def _binary_ply_non_finite(data: bytes) -> int:
+    """The NaN or infinite x, y, z of a binary PLY's vertex element, read with numpy from
+    the layout its header declares (where trimesh reads them). 0 where the layout is not one
+    of fixed-size records up to the vertices (an element with a list property before them,
+    or in them: no exporter seen writes one), or the file is short of them."""
+    lines: list[list[str]] = []
+    start = 0
+    while True:  # the header's lines, to the one that ends it (as trimesh reads them)
+        end = data.find(b"\n", start, 1 << 20)
+        if end < 0:
+            return 0
+        words = data[start:end].decode("latin-1").split()
+        start = end + 1
+        if "end_header" in words:
+            break
+        lines.append(words)
+    formats = [line[1] for line in lines if len(line) > 1 and line[0] == "format"]
+    if formats not in (["binary_little_endian"], ["binary_big_endian"]):
+        return 0
+    order = ">" if formats[0] == "binary_big_endian" else "<"
+    offset = start
+    name = ""
+    count = -1
+    fields: list[tuple[str, str]] = []
+    for line in lines + [["element", "", "0"]]:
+        if line and line[0] == "element":
+            if name == "vertex":  # the vertex element's properties are all read
+                return _vertex_non_finite(data, offset, count, fields)
+            if count >= 0:  # the element before this one, fixed-size records, passed
+                offset += count * (np.dtype(fields).itemsize if fields else 0)
+            if len(line) != 3 or not line[2].isdigit():
+                return 0
+            name, count, fields = line[1], int(line[2]), []
+        elif line and line[0] == "property" and count >= 0:
+            if len(line) != 3 or line[1] not in _PLY_TYPES:
+                return 0  # a list property: the records' size is not fixed
+            fields.append((f"{len(fields)}_{line[2]}", order + _PLY_TYPES[line[1]]))
+    return 0
+
+
+def _vertex_non_finite(data: bytes, offset: int, count: int,
+                       fields: list[tuple[str, str]]) -> int:
+    """The NaN or infinite of a PLY vertex element's x, y and z at ``offset``."""
+    layout = np.dtype(fields)
+    if not fields or count == 0 or offset + count * layout.itemsize > len(data):
+        return 0
+    records = np.frombuffer(data, dtype=layout, count=count, offset=offset)
+    bad = 0
+    for key, _ in fields:
+        if key.split("_", 1)[1] in ("x", "y", "z") and records.dtype[key].kind == "f":
+            bad += int(np.count_nonzero(~np.isfinite(records[key])))
+    return bad
+
+
+def _gltf_non_finite(data: bytes, kind: str) -> int:
+    """The NaN or infinite vertex coordinates of a glTF's or GLB's triangle meshes, as
+    trimesh's reader gives them before building (and processing) its meshes: the accessors'
+    numbers only, the materials' images left unread."""
+    from trimesh.exchange import gltf
+    reader = gltf.load_glb if kind == "glb" else gltf.load_gltf
+    try:
+        read = reader(io.BytesIO(data), skip_materials=True)
+        geometry = read["geometry"].values()
+        return sum(int(np.count_nonzero(~np.isfinite(np.asarray(g["vertices"], dtype=float))))
+                   for g in geometry if "faces" in g and "vertices" in g)
+    except Exception:  # the loading itself then says what is wrong with the file
+        return 0
 
 
 def even_inertia_trace(vertices: np.ndarray, faces: np.ndarray, density: float) -> float:
