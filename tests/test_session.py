@@ -1001,6 +1001,50 @@ def test_a_mesh_file_with_a_non_finite_coordinate_is_refused_by_name(file_type):
                  {"ok.obj": text}).build_scene()
 
 
+def test_a_word_nan_or_inf_in_a_text_mesh_s_comment_is_not_a_coordinate():
+    """A helper's trial: a sound ASCII PLY whose header said "comment made with inf
+    precision" was refused as holding a non-finite coordinate (the whole file's words were
+    counted); so was an OFF with such a comment. The data's words only; a NaN there is
+    still refused."""
+    doc = json.loads((RECORDINGS / "shaft_placed.json").read_text())
+    doc["parts"][0]["density"] = 2700.0
+    doc["parts"][0].pop("assembly", None)
+    clean = trimesh.creation.box(extents=[0.02, 0.03, 0.04])
+    ply = clean.export(file_type="ply", encoding="ascii")
+    ply = ply.replace(ply.splitlines()[2], b"comment made with inf precision, NaN-checked", 1)
+    off = clean.export(file_type="off").replace("OFF\n", "OFF\n# made with inf precision\n"
+                                                "# NaN-checked\n", 1)
+    for name, data in (("ok.ply", ply), ("ok.off", off.encode())):
+        part = doc["parts"][0] | {"shape": {"type": "mesh", "file": name}}
+        scene = make_session(doc | {"parts": [part]}, {name: data}).build_scene()
+        assert len(scene.parts[0].faces) == 12
+    head, body = ply.split(b"end_header\n")
+    bad = head + b"end_header\nnan " + body.split(b" ", 1)[1]
+    part = doc["parts"][0] | {"shape": {"type": "mesh", "file": "bad.ply"}}
+    with pytest.raises(SessionError, match="not finite"):
+        make_session(doc | {"parts": [part]}, {"bad.ply": bad}).build_scene()
+
+
+def test_a_gltf_node_that_places_vertices_at_nan_is_refused_by_name():
+    """A helper's trial: a GLB whose vertices are finite but whose node's transform holds a
+    NaN put every vertex at NaN; a part was then refused as "mass properties hold a
+    non-finite number". The loaded mesh's vertices are checked: named, with the count."""
+    doc = json.loads((RECORDINGS / "shaft_placed.json").read_text())
+    doc["parts"][0]["density"] = 2700.0
+    doc["parts"][0].pop("assembly", None)
+    scene = trimesh.Scene()
+    moved = np.eye(4)
+    moved[0, 3] = np.nan
+    scene.add_geometry(trimesh.creation.box(extents=[0.02, 0.03, 0.04]), transform=moved)
+    part = doc["parts"][0] | {"shape": {"type": "mesh", "file": "moved.glb"}}
+    with pytest.raises(SessionError) as info:
+        make_session(doc | {"parts": [part]},
+                     {"moved.glb": scene.export(file_type="glb")}).build_scene()
+    assert info.value.field == "parts[0].shape.file"
+    assert info.value.message == ("mesh 'moved.glb' places 8 coordinates of its vertices at "
+                                  "NaN or infinity (a transform in the file?): fix the export")
+
+
 def _binary_ply(vertices, faces, *, order="<", before=b""):
     """A binary PLY written by hand: double x, y, z and a colour byte a vertex, an element
     of two floats before the vertices where ``before`` holds them (a layout to walk past)."""

@@ -475,6 +475,15 @@ def _mesh_from_shape(shape: dict, length_factor: float, files: dict[str, bytes],
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
         raise SessionError(f"mesh file {name!r} holds no triangles", file=file,
                            field=f"{at}.file")
+    placed = np.asarray(loaded.vertices)
+    if not np.isfinite(placed).all():
+        # Its numbers finite, its vertices not: a glTF node's transform of NaN (a helper's
+        # trial: then "mass properties hold a non-finite number", or a constraint that
+        # fits "no base faces ... nan x nan x nan m across").
+        bad = int(np.count_nonzero(~np.isfinite(placed)))
+        raise SessionError(f"mesh {name!r} places {bad} coordinate{'' if bad == 1 else 's'} "
+                           "of its vertices at NaN or infinity (a transform in the file?): "
+                           "fix the export", file=file, field=f"{at}.file")
     mesh_factor = UNIT_TO_M[shape["units"]] if "units" in shape else f
     if mesh_factor == 1.0:
         return loaded
@@ -507,8 +516,15 @@ def _non_finite_numbers(data: bytes, kind: str) -> int:
         key = b"v " if kind == "obj" else b"vertex"
         return sum(len(_NON_FINITE.findall(line)) for line in data.splitlines()
                    if line.lstrip().startswith(key))
-    if kind == "off" or (kind == "ply" and b"format ascii" in data[:200]):
-        return len(_NON_FINITE.findall(data))
+    if kind == "ply" and b"format ascii" in data[:200]:
+        # After the header: a comment in it may hold such a word (a helper's trial: "comment
+        # made with inf precision" refused a sound file).
+        end = data.find(b"end_header")
+        return len(_NON_FINITE.findall(data[end:])) if end >= 0 else 0
+    if kind == "off":
+        # Not its comments ("# ..." lines, or the rest of a line after "#").
+        return sum(len(_NON_FINITE.findall(line.split(b"#", 1)[0]))
+                   for line in data.splitlines())
     if kind == "ply":
         return _binary_ply_non_finite(data)
     if kind in ("glb", "gltf"):
