@@ -14,6 +14,7 @@ import pytest
 
 from conftest import RECORDINGS
 from strategies import FULL
+from vade_replay import native
 from vade_replay.bench import instructions
 from vade_replay.cli import bench
 from vade_replay.cli._common import run
@@ -152,7 +153,8 @@ def test_the_script_marks_each_stage_once_and_replays_what_it_counts(tmp_path):
     done = subprocess.run([sys.executable, "-c", wrapper, *paths], capture_output=True,
                           text=True, cwd=tmp_path, timeout=120)
     assert done.returncode == 0, done.stderr[-2000:]
-    frames, marks = done.stdout.strip().splitlines()[-2:]
+    build, frames, marks = done.stdout.strip().splitlines()[-3:]
+    assert json.loads(build) == native.describe()  # the build it ran, to hold to the parent's
     assert json.loads(frames) == [151, 181]
     assert int(marks) == 1 + len(instructions.STAGES) * len(paths)
 
@@ -292,3 +294,16 @@ def test_a_python_whose_marker_callgrind_cannot_see_is_named(monkeypatch):
     with pytest.raises(VadeError, match="callgrind cannot see zlib_adler32") as info:
         instructions.probe()
     assert info.value.field == "--instructions"
+
+
+def test_a_count_by_another_build_than_this_one_is_refused(monkeypatch):
+    """A session's count gave the step ~7x its instructions, quietly: a compiled module's
+    source was edited while valgrind ran, and the counted process, finding the build stale,
+    ran the sources (``native.install_switch``). The build the counted process ran is held
+    to this one's."""
+    here = native.describe()
+    monkeypatch.setattr(instructions, "_callgrind", lambda script, args: (
+        json.dumps("pure Python (stale: vade_replay/scene.py)") + "\n[151]\n", [1] * 8, [0] * 8))
+    with pytest.raises(VadeError, match="the counted process ran 'pure Python") as info:
+        instructions.count([RECORDINGS / "drop_on_table.mcap"])
+    assert info.value.field == "--instructions" and here in info.value.message

@@ -42,6 +42,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+from .. import native
 from ..errors import ConfigError
 from .sessions import RESTING, resting_name
 
@@ -53,6 +54,7 @@ _MARKER = "zlib_adler32"  # the C function of zlib.adler32, the stages' marker
 # the open is counted once, in ``open``, and the step is what stepping adds.
 _SCRIPT = """
 import gc, json, sys, zlib
+from vade_replay import native
 from vade_replay.collision import CollisionWorld
 from vade_replay.recording import Recording, read_and_decode
 from vade_replay.replay import Stepper, _INPUTS, _stepped, replay
@@ -98,6 +100,7 @@ for p, for_setup, for_frames in ready:
     frames(for_frames); mark(b"")
     stepped(p); mark(b"")
     check(p); mark(b"")
+print(json.dumps(native.describe()))
 print(json.dumps(counts))
 """
 
@@ -335,8 +338,17 @@ def count(paths: list[Path], log=None) -> list[dict]:
     log = log or (lambda text: None)
     log(f"instructions: {len(paths)} recordings under callgrind")
     out, totals, objects = _callgrind(_SCRIPT, [str(p) for p in paths])
-    frames = json.loads(out.strip().splitlines()[-1])
-    return rows_from([p.stem for p in paths], frames, totals, objects)
+    *_, build, counts = out.strip().splitlines()
+    counted, here = json.loads(build), native.describe()
+    if counted != here:
+        # (A module's source edited while the count ran: the counted process found the
+        # compiled build stale and ran the sources, ~5x the instructions of the build, and
+        # said nothing.)
+        raise ConfigError(f"the counted process ran {counted!r} where this one runs {here!r}: "
+                          "a compiled module's source changed since the build (rebuild: pip "
+                          "install -e . --no-deps), or VADE_REPLAY_PURE differs; the counts "
+                          "would not be this build's", field="--instructions")
+    return rows_from([p.stem for p in paths], json.loads(counts), totals, objects)
 
 
 def run(short: bool, log=None) -> list[dict]:
