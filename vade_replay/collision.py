@@ -142,26 +142,28 @@ class _Surface:
 @dataclass(eq=False)
 class _SupportDetail:
     """What ``CollisionWorld.support_gap`` asks where a plane's outline does not settle it:
-    the plane's faces' boundary (2-D segments) and corners (3-D, base axes), and the part's
-    faces in its own plane (a BVH's object, or None)."""
+    the plane's faces' boundary (2-D segments) and corners (3-D, base axes), the part's
+    boundary (or line) in its own plane (3-D segments, part frame), and the part's faces
+    there (a BVH's object, or None)."""
 
     boundary: np.ndarray
     corners: np.ndarray
+    part_edges: np.ndarray
     part_flat: fcl.CollisionObject | None
 
 
 @dataclass(eq=False)
 class _SupportPlane:
     """A plane mate's plane as ``CollisionWorld.support_gap`` asks it: its point, unit
-    normal and 2-D axes, the hull of its faces' corners (2-D), the part's boundary (or
-    line) in its own plane (3-D segments, part frame) and how far its centre of mass
-    overhangs the hull of that footprint (m; 0 for most parts), and the rest once needed."""
+    normal and 2-D axes, the hull of its faces' corners (2-D), the part's vertices in its
+    own plane (its footprint's corners, part frame) and how far its centre of mass overhangs
+    their hull (m; 0 for most parts), and the rest once needed."""
 
     point: np.ndarray
     normal: np.ndarray
     basis: tuple[np.ndarray, np.ndarray]
     outline: np.ndarray
-    part_edges: np.ndarray
+    footprint: np.ndarray
     overhang: float
     detail: _SupportDetail | None = None
 
@@ -513,20 +515,19 @@ class CollisionWorld:
             # part) is held as well where a hole or slot is under its centre of mass and
             # not under its footprint (an L-shaped part "slid off" into a groove under its
             # arm and rested 19.9 mm inside the plate).
-            vertices, faces = np.asarray(body.vertices), np.asarray(body.faces)
+            vertices = np.asarray(body.vertices, dtype=np.float64)
             part_point = np.array(m.part_points[plane], dtype=np.float64)
             part_normal = np.array(sp.normalize(m.part_dirs[plane]), dtype=np.float64)
-            part_edges = vertices[support.plane_edges(vertices, faces, part_point,
-                                                      part_normal, tol)]
+            footprint = vertices[np.abs(support.along(vertices - part_point, part_normal))
+                                 <= tol]
             overhang = 0.0
-            if len(part_edges):
+            if len(footprint):
                 cm = np.array(body.center_of_mass, dtype=np.float64)
                 own = support.plane_basis(part_normal)
-                overhang = support.support_gap(
-                    _flat2(cm[None, :], part_point, own)[0],
-                    _flat2(part_edges.reshape(-1, 3), part_point, own))
+                overhang = support.support_gap(_flat2(cm[None, :], part_point, own)[0],
+                                               _flat2(footprint, part_point, own))
             held = self._support_planes[(part, mate, plane)] = _SupportPlane(
-                point, normal, basis, outline, part_edges, overhang)
+                point, normal, basis, outline, footprint, overhang)
         rel = [foot[0] - float(held.point[0]), foot[1] - float(held.point[1]),
                foot[2] - float(held.point[2])]
         foot_2d = (sum(r * float(b) for r, b in zip(rel, held.basis[0])),
@@ -548,10 +549,11 @@ class CollisionWorld:
             detail = held.detail = _SupportDetail(
                 held.flat2(edges.reshape(-1, 3)).reshape(-1, 2, 2),
                 np.unique(edges.reshape(-1, 3), axis=0),
+                vertices[support.plane_edges(vertices, faces, part_point, part_normal, tol)],
                 None if model is None else fcl.CollisionObject(model, self._identity))
-        if len(held.part_edges) == 0:
+        if len(detail.part_edges) == 0:
             return math.inf
-        posed = posed_points(held.part_edges.reshape(-1, 3), base_from_part)
+        posed = posed_points(detail.part_edges.reshape(-1, 3), base_from_part)
         part_2d = held.flat2(posed).reshape(-1, 2, 2)
         found = [support.crossings(part_2d, detail.boundary)]
         # The part's corners on the plane's faces.
@@ -579,7 +581,8 @@ class CollisionWorld:
             # A centre of mass off its own footprint is asked at the footprint's point
             # nearest it: a footprint wholly on the faces holds the part as the faces under
             # its centre of mass do, and its edge leaves a plate's edge as a block's does.
-            _, x, y = support.nearest_in_hull(foot_2d, support.convex_hull(part_2d))
+            _, x, y = support.nearest_in_hull(foot_2d, support.convex_hull(
+                held.flat2(posed_points(held.footprint, base_from_part))))
             foot_2d = (x, y)
         return support.support_gap(foot_2d, np.concatenate(found))
 
