@@ -293,3 +293,63 @@ def test_an_overhanging_part_leaves_a_plate_s_edge_when_its_footprint_does():
     changes = [c for r in records for e in r.events if hasattr(e, "to_mode")
                for c in [e.cause] if r.frame > off[0]]
     assert changes == ["hit_environment"]
+
+
+@pytest.mark.parametrize("x0, x1", [(0.015, 0.030), (-0.030, 0.030)])
+def test_an_overhanging_part_is_not_held_by_the_plate_under_its_arm(x0, x1):
+    """A review: a groove cutting 10 mm of the L's footprint (x 15-30 mm) or taking all of
+    it (x -30-30 mm, the foot touching nothing) held it while the plate under its arm (its
+    centre of mass at x = 33.3 mm, off its own faces) was there, and slid it to the far edge
+    as on the plain plate; a groove 15 mm wider (under its centre of mass too) left it at
+    once. The faces under a centre of mass the part's own faces do not cover hold nothing:
+    the hull of contact decides, and it leaves as it starts to slide."""
+    doc = _l_part(json.loads((RECORDINGS / "plane_block_edge.json").read_text()))
+    records, off, _ = _slide(_grooved(doc, x0, x1))
+    changes = [(r.frame, e.cause) for r in records for e in r.events if hasattr(e, "to_mode")]
+    started = next(f for f, c in changes if c == "static_friction_exceeded")
+    assert off == [started]
+
+
+def test_an_overhanging_part_trailing_its_arm_leaves_when_its_footprint_does():
+    """A review: the L's arm trailing its slide (on +y, the plate's edge at y = -0.15
+    ahead), its foot passes the edge 8.3 mm before its centre of mass does. It was held
+    until its centre of mass passed, a frame with its whole footprint 3.4 mm past the edge
+    and nothing under it; it leaves in the frame its footprint's point nearest its centre
+    of mass (the foot's back edge) passes the edge."""
+    doc = json.loads((RECORDINGS / "plane_block_edge.json").read_text())
+    doc["parts"][0]["shape"] = {"type": "compound", "children": [
+        {"type": "box", "size": [0.05, 0.05, 0.02], "pose": {"position": [0, 0, -0.01]}},
+        {"type": "box", "size": [0.05, 0.1, 0.02], "pose": {"position": [0, 0.05, 0.01]}}]}
+    records, off, _ = _slide(doc)
+    assert len(off) == 1
+    before, leaving = (next(r for r in records if r.frame == k) for k in (off[0] - 1, off[0]))
+    back = 0.025  # the foot's back edge, part frame (its centre of mass at y = +0.0333)
+    assert _in_base(before).position[1] + back > -0.15 > _in_base(leaving).position[1] + back
+    assert _in_base(leaving).position[1] + 0.0333 > -0.15  # its centre of mass still over it
+
+
+def test_a_u_shaped_part_is_not_held_by_a_rib_under_its_centre_of_mass():
+    """A review: the U (legs 5 mm wide at x = +-22.5 mm) with both legs over open slots and
+    a rib under its notch right under its centre of mass (x -3-3 mm), which it never
+    touches, was held by the rib and slid 22 frames touching nothing. Its own faces do not
+    cover its centre of mass, so the rib under it is not asked: it leaves as it starts to
+    slide, as over the ribs beside its centre of mass."""
+    doc = json.loads((RECORDINGS / "plane_block_edge.json").read_text())
+    part = doc["parts"][0]
+    part["shape"] = {"type": "compound", "children": [
+        {"type": "box", "size": [0.005, 0.05, 0.02], "pose": {"position": [-0.0225, 0, -0.01]}},
+        {"type": "box", "size": [0.005, 0.05, 0.02], "pose": {"position": [0.0225, 0, -0.01]}},
+        {"type": "box", "size": [0.05, 0.05, 0.02], "pose": {"position": [0, 0, 0.01]}}]}
+    part["assembly"]["constraints"][0]["part"]["point"] = [0, 0, -0.02]
+
+    def box(x0, x1, y0, y1):
+        return {"type": "box", "size": [x1 - x0, y1 - y0, 0.02],
+                "pose": {"position": [(x0 + x1) / 2, (y0 + y1) / 2, 0.0]}}
+    wall = doc["base"]["shape"]["children"][1]
+    doc["base"]["shape"]["children"] = [box(-0.15, -0.03, -0.15, 0.13),
+                                        box(0.03, 0.15, -0.15, 0.13),
+                                        box(-0.003, 0.003, -0.15, 0.13), wall]
+    records, off, _ = _slide(doc)
+    changes = [(r.frame, e.cause) for r in records for e in r.events if hasattr(e, "to_mode")]
+    started = next(f for f, c in changes if c == "static_friction_exceeded")
+    assert off == [started]

@@ -155,16 +155,12 @@ class _SupportDetail:
 @dataclass(eq=False)
 class _SupportPlane:
     """A plane mate's plane as ``CollisionWorld.support_gap`` asks it: its point, unit
-    normal and 2-D axes, the hull of its faces' corners (2-D), the part's vertices in its
-    own plane (its footprint's corners, part frame) and how far its centre of mass overhangs
-    their hull (m; 0 for most parts), and the rest once needed."""
+    normal and 2-D axes, the hull of its faces' corners (2-D), and the rest once needed."""
 
     point: np.ndarray
     normal: np.ndarray
     basis: tuple[np.ndarray, np.ndarray]
     outline: np.ndarray
-    footprint: np.ndarray
-    overhang: float
     detail: _SupportDetail | None = None
 
     def flat2(self, points: np.ndarray) -> np.ndarray:
@@ -178,6 +174,9 @@ def _flat2(points: np.ndarray, point: np.ndarray,
     return np.stack([support.along(rel, basis[0]), support.along(rel, basis[1])], axis=-1)
 
 
+# A centre of mass no farther than this (m) outside the hull of the part's footprint on a
+# plane is over it (``CollisionWorld.stand_in``: round-off put a rod's 4e-18 m off its line).
+_OVERHANG_MIN_M: Final = 1e-9
 # Faces meeting at a fold under this are one surface (a plane meshed finely, a cylinder's
 # side); the base's edges and corners are sharper.
 _FOLD_DEG = 30.0
@@ -295,6 +294,9 @@ class CollisionWorld:
         # Per (part, constraint, plane): what ``support_gap`` asks of it (``_SupportPlane``),
         # made the first time a centre of mass is off the plane's faces.
         self._support_planes: dict[tuple[str, int, int], _SupportPlane] = {}
+        # Per (part, constraint, plane): what stands for the centre of mass there, and
+        # whether the part's own faces cover it (``stand_in``).
+        self._stand_ins: dict[tuple[str, int, int], tuple[sp.Vec3 | None, bool]] = {}
         # Per (part, mate, mode): the pair of triangles that last came within the tolerance
         # (``base_distance_within``), as one-triangle BVHs.
         self._witnesses: dict[tuple[str, int, CheckMode],
@@ -483,18 +485,65 @@ class CollisionWorld:
         probe = fcl.CollisionObject(self._probe, fcl.Transform(np.array(point, dtype=np.float64)))
         return _distance(probe, feature)
 
+    def stand_in(self, part: str, mate: int, plane: int,
+                 tol: float) -> tuple[sp.Vec3 | None, bool]:
+        """What stands for the part's centre of mass on its side of the plane mate's
+        ``plane`` when asking what holds it up (``step._unsupported``), and whether the
+        part's own faces there (or its line of contact: a rod on a line of its facets) cover
+        that point, within ``tol``. The point is None for the centre of mass dropped onto
+        the plane, as for most parts; for one whose centre of mass overhangs the hull of its
+        footprint (the part's vertices in the plane: an L-shaped part, its arm out past its
+        foot) it is that hull's point nearest the centre of mass (part frame): a part held
+        on a plain plate (nothing here tips a part) is held as well where a hole or slot,
+        or the plate's edge, is under its arm and not under its foot (an L "slid off" into
+        a groove under its arm and rested 19.9 mm inside the plate). Not covered (a U-shaped
+        part's notch), the base's faces under that point may touch nothing of the part (a
+        review: a U held by a rib under its notch, an L by the plate under its arm, its
+        foot wholly over a groove). Found once a part and plane, in the part's frame."""
+        key = (part, mate, plane)
+        found = self._stand_ins.get(key)
+        if found is not None:
+            return found
+        body = self._bodies[part]
+        assert body.assembly is not None
+        m = body.assembly.mates[mate]
+        vertices = np.asarray(body.vertices, dtype=np.float64)
+        faces = np.asarray(body.faces)
+        point = np.array(m.part_points[plane], dtype=np.float64)
+        normal = np.array(sp.normalize(m.part_dirs[plane]), dtype=np.float64)
+        own = support.plane_basis(normal)
+        cm = _flat2(np.array([body.center_of_mass], dtype=np.float64), point, own)[0]
+        footprint = _flat2(vertices[np.abs(support.along(vertices - point, normal)) <= tol],
+                           point, own)
+        stand: sp.Vec3 | None = None
+        at = cm
+        if len(footprint):
+            overhang, x, y = support.nearest_in_hull(cm, support.convex_hull(footprint))
+            if overhang > _OVERHANG_MIN_M:
+                at = np.array([x, y])
+                stand = (float(point[0] + x * own[0][0] + y * own[1][0]),
+                         float(point[1] + x * own[0][1] + y * own[1][1]),
+                         float(point[2] + x * own[0][2] + y * own[1][2]))
+        flat = faces[support.in_plane(vertices, faces, point, normal, tol)]
+        triangles = _flat2(vertices[flat.ravel()], point, own).reshape(-1, 3, 2)
+        if len(flat):
+            covered = support.distance_to_pieces(at, triangles, np.zeros((0, 2, 2))) <= tol
+        else:  # no face in the plane: its line of contact, if any
+            edges = vertices[support.plane_edges(vertices, faces, point, normal, tol)]
+            covered = support.distance_to_pieces(at, triangles, _flat2(
+                edges.reshape(-1, 3), point, own).reshape(-1, 2, 2)) <= tol
+        found = self._stand_ins[key] = (stand, bool(covered))
+        return found
+
     def support_gap(self, part: str, mate: int, plane: int, foot: sp.Vec3,
                     base_from_part: sp.Pose, tol: float, beyond: float = 0.0) -> float:
         """How far ``foot`` (the centre of mass dropped onto the plane mate's ``plane``, base
         axes) lies outside the convex hull of where the part's faces or edges in that plane
         (within ``tol``) meet the plane's faces: 0 within it, ``inf`` where they do not meet
-        (``support``); for a centre of mass that overhangs the part's own footprint
-        (``_SupportPlane.overhang``), the footprint's point nearest the foot stands for it.
-        Where the foot is off the faces (``support_distance``) over a hole or a slot the
-        part spans, or its footprint is wholly on them, it is held still. ``inf`` at once
-        where the foot is ``beyond`` (and the overhang) or farther outside the hull of all
-        the plane's faces (past a plate's outer edge: nothing of the part's can hold it
-        nearer; ~20 us, not ~0.4 ms)."""
+        (``support``). Where the foot is off the faces (``support_distance``) over a hole or
+        a slot the part spans, it is held still. ``inf`` at once where the foot is
+        ``beyond`` or farther outside the hull of all the plane's faces (past a plate's
+        outer edge: nothing of the part's can hold it nearer; ~20 us, not ~0.4 ms)."""
         body = self._bodies[part]
         geometry = self._mate(part, mate)
         assert body.assembly is not None
@@ -510,29 +559,13 @@ class CollisionWorld:
             flat = faces[support.in_plane(self._base_vertices, faces, point, normal, tol)]
             outline = support.convex_hull(_flat2(self._base_vertices[flat.ravel()], point,
                                                  basis))
-            # The part's footprint, and how far its centre of mass overhangs it: a part
-            # held while its centre of mass is over the plane's faces (nothing here tips a
-            # part) is held as well where a hole or slot is under its centre of mass and
-            # not under its footprint (an L-shaped part "slid off" into a groove under its
-            # arm and rested 19.9 mm inside the plate).
-            vertices = np.asarray(body.vertices, dtype=np.float64)
-            part_point = np.array(m.part_points[plane], dtype=np.float64)
-            part_normal = np.array(sp.normalize(m.part_dirs[plane]), dtype=np.float64)
-            footprint = vertices[np.abs(support.along(vertices - part_point, part_normal))
-                                 <= tol]
-            overhang = 0.0
-            if len(footprint):
-                cm = np.array(body.center_of_mass, dtype=np.float64)
-                own = support.plane_basis(part_normal)
-                overhang = support.support_gap(_flat2(cm[None, :], part_point, own)[0],
-                                               _flat2(footprint, part_point, own))
             held = self._support_planes[(part, mate, plane)] = _SupportPlane(
-                point, normal, basis, outline, footprint, overhang)
+                point, normal, basis, outline)
         rel = [foot[0] - float(held.point[0]), foot[1] - float(held.point[1]),
                foot[2] - float(held.point[2])]
         foot_2d = (sum(r * float(b) for r, b in zip(rel, held.basis[0])),
                    sum(r * float(b) for r, b in zip(rel, held.basis[1])))
-        if support.distance_outside(foot_2d, held.outline) >= beyond + held.overhang:
+        if support.distance_outside(foot_2d, held.outline) >= beyond:
             return math.inf
         detail = held.detail
         if detail is None:
@@ -577,13 +610,6 @@ class CollisionWorld:
                     under.append(i)
             if under:
                 found.append(theirs[under])
-        if held.overhang > 0.0:
-            # A centre of mass off its own footprint is asked at the footprint's point
-            # nearest it: a footprint wholly on the faces holds the part as the faces under
-            # its centre of mass do, and its edge leaves a plate's edge as a block's does.
-            _, x, y = support.nearest_in_hull(foot_2d, support.convex_hull(
-                held.flat2(posed_points(held.footprint, base_from_part))))
-            foot_2d = (x, y)
         return support.support_gap(foot_2d, np.concatenate(found))
 
     def sweep_clearance(self, part: str, mate: int, axis_point: sp.Vec3,

@@ -2291,8 +2291,24 @@ def _unsupported(f: _Frame, body: Body, mate: int, rel: sp.Pose, plane: int,
     first version's jump of the tolerance put a leaving there). Past a convex face's edge
     the plane's outline is as far as the faces are, and the faces' distance stands to the
     bit (``support_gap`` is not asked further where the outline is within a nanometre of
-    that distance: the goldens' frames are the same)."""
+    that distance: the goldens' frames are the same). A centre of mass past the part's
+    footprint is asked at the footprint's point nearest it, and one its own faces do not
+    cover (a U's notch) by the hull alone (``CollisionWorld.stand_in``; nineteenth session:
+    an L slid off into a groove under its arm, and a review found an L held by the plate
+    under its arm, its foot wholly over a groove, and a U by a rib under its notch)."""
     tol = f.scene.physics.contact_tolerance
+    stand, covered = f.collision.stand_in(body.name, mate, plane, tol)
+    if stand is not None:
+        # Its centre of mass past its footprint: the footprint's point nearest it stands
+        # for it, dropped onto the plane as the centre of mass is (``_feet``).
+        m = cast(Assembly, body.assembly).mates[mate]
+        point, normal = m.base_points[plane], m.base_dirs[plane]
+        at = rel.apply(stand)
+        foot = sp.sub(at, sp.scale(normal, sp.dot(sp.sub(at, point), normal)))
+    if not covered:
+        # Not on its own faces (a notch): the faces under it may touch nothing of the
+        # part; the hull of contact alone holds it.
+        return f.collision.support_gap(body.name, mate, plane, foot, rel, tol, math.inf)
     d = f.collision.support_distance(body.name, mate, foot)
     if d <= tol:
         return d

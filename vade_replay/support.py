@@ -171,6 +171,32 @@ def nearest_in_hull(point, hull: np.ndarray) -> tuple[float, float, float]:
     return best, qx, qy
 
 
+def distance_to_pieces(point, triangles: np.ndarray, segments: np.ndarray) -> float:
+    """How far 2-D ``point`` is from the nearest of ``triangles`` (k, 3, 2) and ``segments``
+    (j, 2, 2): 0 inside or on a triangle, ``inf`` where there are none."""
+    p = np.asarray(point, dtype=np.float64)
+    best = math.inf
+    if len(triangles):
+        a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
+
+        def side(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+            return (v[:, 0] - u[:, 0]) * (p[1] - u[:, 1]) - (v[:, 1] - u[:, 1]) * (p[0] - u[:, 0])
+        s1, s2, s3 = side(a, b), side(b, c), side(c, a)
+        if np.any(((s1 >= 0) & (s2 >= 0) & (s3 >= 0)) | ((s1 <= 0) & (s2 <= 0) & (s3 <= 0))):
+            return 0.0
+        segments = np.concatenate([segments.reshape(-1, 2, 2), np.stack([a, b], axis=1),
+                                   np.stack([b, c], axis=1), np.stack([c, a], axis=1)])
+    if len(segments):
+        u, v = segments[:, 0], segments[:, 1]
+        d = v - u
+        length2 = d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]
+        t = np.where(length2 > 0.0, ((p[0] - u[:, 0]) * d[:, 0] + (p[1] - u[:, 1]) * d[:, 1])
+                     / np.where(length2 > 0.0, length2, 1.0), 0.0)
+        t = np.clip(t, 0.0, 1.0)
+        best = float(np.min(np.hypot(p[0] - u[:, 0] - t * d[:, 0], p[1] - u[:, 1] - t * d[:, 1])))
+    return best
+
+
 def support_gap(foot, held: np.ndarray) -> float:
     """How far ``foot`` (2-D: the centre of mass dropped onto the plane) lies outside the
     convex hull of ``held`` (2-D points of where the part meets the plane's faces, its
