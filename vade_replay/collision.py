@@ -177,6 +177,47 @@ def _flat2(points: np.ndarray, point: np.ndarray,
 # A centre of mass no farther than this (m) outside the hull of the part's footprint on a
 # plane is over it (``CollisionWorld.stand_in``: round-off put a rod's 4e-18 m off its line).
 _OVERHANG_MIN_M: Final = 1e-9
+@dataclass(eq=False)
+class AxialSplit:
+    """The base faces of a ``SKIP_COAXIAL`` check split for a part moved along its axis
+    constraint's base axis from one pose (``CollisionWorld.axial_split``). Such a move keeps
+    every point's distance from the axis, so a base face lying radially apart from the
+    part's faces, by its least and greatest distance from the axis against theirs
+    (``radial_extent``), is never met, nor nearer than that radial gap. Per query of the
+    check (the whole part against the rest, or each radial fit's pair): ``blocking``, the
+    part's model (None: the whole part's) and the base faces not apart (None where there
+    are none); ``passing``, those apart by under ``near`` (``_Passing``). ``far_gap``: the
+    least radial gap of the other faces apart (inf: none). ``empty``: the check compares
+    nothing (``base_distance`` is inf)."""
+
+    blocking: list
+    passing: list
+    far_gap: float
+    empty: bool
+
+
+@dataclass(eq=False)
+class _Passing:
+    """Base faces of one query apart radially from the part by under ``near``: the part's
+    model (None: the whole part's) and their object; per face its radial gap, its least,
+    greatest and middle place along the axis, and its least and greatest distance from it;
+    per part face of the query (posed) its least and greatest place along the axis and
+    distance from it."""
+
+    model: fcl.BVHModel | None
+    obj: fcl.CollisionObject | None
+    gap: np.ndarray
+    z_lo: np.ndarray
+    z_hi: np.ndarray
+    z_mid: np.ndarray
+    r_lo: np.ndarray
+    r_hi: np.ndarray
+    part_z_lo: np.ndarray
+    part_z_hi: np.ndarray
+    part_r_lo: np.ndarray
+    part_r_hi: np.ndarray
+
+
 # Faces meeting at a fold under this are one surface (a plane meshed finely, a cylinder's
 # side); the base's edges and corners are sharper.
 _FOLD_DEG = 30.0
@@ -297,6 +338,13 @@ class CollisionWorld:
         # Per (part, constraint, plane): what stands for the centre of mass there, and
         # whether the part's own faces cover it (``stand_in``).
         self._stand_ins: dict[tuple[str, int, int], tuple[sp.Vec3 | None, bool]] = {}
+        # Per (part, constraint, query): the base faces' radial extents and axial middles
+        # (``axial_split``), and per faces of a split their object.
+        self._axial_extents: dict[tuple[str, int, int], tuple[np.ndarray, np.ndarray,
+                                                              np.ndarray, np.ndarray,
+                                                              np.ndarray]] = {}
+        self._split_objects: dict[tuple[str, int, int, str, bytes],
+                                  fcl.CollisionObject | None] = {}
         # Per (part, mate, mode): the pair of triangles that last came within the tolerance
         # (``base_distance_within``), as one-triangle BVHs.
         self._witnesses: dict[tuple[str, int, CheckMode],
@@ -420,6 +468,117 @@ class CollisionWorld:
             return float("inf")
         self.stats["fcl_distance_queries"] += 1
         return _distance(fcl.CollisionObject(model, _transform(pose)), other)
+
+    def axial_split(self, part: str, mate: int, base_from_part: sp.Pose, apart: float,
+                    near: float) -> AxialSplit:
+        """``SKIP_COAXIAL``'s faces split for the posed part moved along the axis
+        constraint's base axis (``AxialSplit``): base faces radially farther than ``apart``
+        from the part's are left out of ``blocking``; those under ``near`` are ``passing``.
+        The base's radial and axial extents are asked once per constraint; the models built
+        for a split are kept for the next with the same faces (an approach's turns)."""
+        geometry = self._mate(part, mate)
+        body = self._bodies[part]
+        assert body.assembly is not None
+        m = body.assembly.mates[mate]
+        point, axis = m.base_points[0], m.base_dirs[0]
+        if geometry.fit_pairs is not None:
+            queries = [(q[0], q[2], q[3]) for q in geometry.fit_pairs]
+        elif geometry.base_rest is not None and len(body.faces):
+            queries = [(None, body.faces, geometry.base_rest_faces)]
+        else:
+            queries = []
+        posed = posed_points(body.vertices, base_from_part)
+        u = np.asarray(axis, dtype=np.float64)
+        along = dots(posed - np.asarray(point, dtype=np.float64), u)
+        blocking: list = []
+        passing: list = []
+        far_gap = math.inf
+        for k, (model, faces_p, faces_b) in enumerate(queries):
+            extent = self._axial_extents.get((part, mate, k))
+            if extent is None:
+                lo_b, hi_b = radial_extent(self._base_vertices, faces_b, point, axis)
+                z = dots(self._base_vertices - np.asarray(point, dtype=np.float64), u)[faces_b]
+                extent = self._axial_extents[(part, mate, k)] = (
+                    lo_b, hi_b, z.min(axis=1), z.max(axis=1), z.mean(axis=1))
+            lo_b, hi_b, z_lo, z_hi, z_mid = extent
+            lo_p, hi_p = radial_extent(posed, faces_p, point, axis)
+            gap = np.maximum(np.maximum(lo_b - float(hi_p.max()), float(lo_p.min()) - hi_b),
+                             0.0)
+            apart_of = gap > apart
+            blocking.append((model, self._split_object(part, mate, k, "blocking", ~apart_of,
+                                                       faces_b)))
+            far = apart_of & (gap >= near)
+            if far.any():
+                far_gap = min(far_gap, float(gap[far].min()))
+            close = apart_of & (gap < near)
+            if close.any():
+                z_p = along[faces_p]
+                passing.append(_Passing(
+                    model, self._split_object(part, mate, k, "passing", close, faces_b),
+                    gap[close], z_lo[close], z_hi[close], z_mid[close], lo_b[close],
+                    hi_b[close], z_p.min(axis=1), z_p.max(axis=1), lo_p, hi_p))
+        return AxialSplit(blocking, passing, far_gap,
+                          all(len(faces_b) == 0 for _, _, faces_b in queries))
+
+    def passed_distance(self, part: str, split: AxialSplit, base_from_part: sp.Pose,
+                        axis: sp.Vec3, t_lo: float, t_hi: float,
+                        near: float) -> tuple[float, float]:
+        """How near the split's ``passing`` faces the part comes moved from its pose by
+        ``t`` times the base ``axis`` (a unit vector), ``t_lo <= t <= t_hi``: a lower bound
+        and a distance met. No point of the part comes nearer a face than the face's radial
+        gap and its gap along the axis to the part's span together (the radial and axial
+        distances of two points are no more than their distance). Each query's face
+        nearest by that bound (under ``near``: else only the bound is given) is asked of fcl
+        with the part moved to put its middle within the span along the axis of the part
+        face nearest it radially, over the longest stretch of offsets that does: the
+        distance is inf where no face was asked, NaN where one to be asked is beside no
+        such part face within the interval."""
+        bound = met = math.inf
+        for q in split.passing:
+            low, high = float(q.part_z_lo.min()), float(q.part_z_hi.max())
+            # The face's gap along the axis to the part's span swept over [t_lo, t_hi].
+            sep = np.maximum(np.maximum(q.z_lo - (high + t_hi), (low + t_lo) - q.z_hi), 0.0)
+            lower = np.sqrt(q.gap * q.gap + sep * sep)
+            i = int(np.argmin(lower))
+            bound = min(bound, float(lower[i]))
+            if float(lower[i]) >= near:
+                continue
+            pair = np.maximum(np.maximum(float(q.r_lo[i]) - q.part_r_hi,
+                                         q.part_r_lo - float(q.r_hi[i])), 0.0)
+            nearest = pair <= float(pair.min())
+            a = np.maximum(float(q.z_mid[i]) - q.part_z_hi[nearest], t_lo)
+            b = np.minimum(float(q.z_mid[i]) - q.part_z_lo[nearest], t_hi)
+            j = int(np.argmax(b - a))
+            if not float(b[j]) >= float(a[j]):
+                return bound, math.nan
+            t = 0.5 * (float(a[j]) + float(b[j]))
+            moved = sp.Pose(sp.add(base_from_part.position, sp.scale(axis, t)),
+                            base_from_part.rotation)
+            met = min(met, self.split_distance(part, [(q.model, q.obj)], moved))
+        return bound, met
+
+    def _split_object(self, part: str, mate: int, k: int, kind: str, mask: np.ndarray,
+                      faces_b: np.ndarray) -> fcl.CollisionObject | None:
+        """The base object of ``faces_b[mask]`` (None: no faces), built once per faces."""
+        key = (part, mate, k, kind, np.packbits(mask).tobytes())
+        if key not in self._split_objects:
+            model = _bvh_of(self._base_vertices, faces_b[mask])
+            self._split_objects[key] = None if model is None else fcl.CollisionObject(
+                model, self._identity)
+        return self._split_objects[key]
+
+    def split_distance(self, part: str, pairs: list, base_from_part: sp.Pose) -> float:
+        """The least distance of the posed part's pairs (``AxialSplit.blocking``, or one of
+        ``passing`` in a list); inf where none has base faces."""
+        transform = _transform(base_from_part)
+        d = float("inf")
+        for model, other in pairs:
+            if other is None:
+                continue
+            self.stats["fcl_distance_queries"] += 1
+            d = min(d, _distance(fcl.CollisionObject(
+                self._model(part) if model is None else model, transform), other))
+        return d
 
     def base_distance_within(self, part: str, mate: int, base_from_part: sp.Pose,
                              mode: CheckMode, tol: float, *,

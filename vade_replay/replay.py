@@ -1463,37 +1463,111 @@ def _box_gap(a: tuple[list[float], list[float]], b: tuple[list[float], list[floa
 
 
 def _depth_into_base(collision: CollisionWorld, part: str, k: int, mate: cn.Mate, pose,
-                     reach: float, passes: list[float] | None = None) -> float:
+                     reach: float, passes: list[float] | None = None,
+                     tol: float = 0.0) -> float:
     """How far short of ``pose`` the base stops the part coming along its constraint from
     outside the base: from either end of an axis, from the open side of a plane; 0 if it
     gets there (touching is there). The part starts beyond everything (``reach``: its own
     size) and is moved in by its distance to the base each step, which no translation of
     that length can pass through; within the contact tolerance it has hit. (fcl's distance
     is 0 for overlapping meshes and a gap between nested ones, so a pose is not judged by
-    its own distance.)"""
+    its own distance.)
+
+    On an axis the steps are measured to the base faces a move along the axis can meet:
+    a face lying radially apart from the part (a bore's rim round a pin, 0.2 mm clear) is
+    never met, so it does not shorten them (``CollisionWorld.axial_split``; a 100k-face pin
+    passing such a rim took ~0.2 mm steps of a whole-mesh query each). What an approach
+    that gets there passes (``passes``, as the passing warnings with contact tolerance
+    ``tol`` read it) is the nearest its steps came to the faces it is measured to, with
+    the faces apart radially by their radial gap where that is twice ``tol`` or more, and
+    those nearer by their distance with the part beside the nearest of them, taken where
+    nothing the warnings tell lies between it and their radial gap (``_passed``); else that
+    way is approached as it was, measured to every face (``_approach``)."""
     mode = SKIP_COAXIAL if mate.kind == "axis" else SKIP_COPLANAR
     axis = mate.base_dirs[0]
-    if collision.base_distance(part, k, pose, mode) == math.inf:
-        return 0.0
     far = collision.base_radius + math.sqrt(sp.dot(pose.position, pose.position)) + reach \
         + 0.01
+    if mate.kind != "axis":
+        if collision.base_distance(part, k, pose, mode) == math.inf:
+            return 0.0
+        s, nearest = _approach(collision, part, k, mode, pose, axis, 1.0, far)
+        if passes is not None and s <= _INSIDE_BASE_M:
+            passes.append(nearest)
+        return s
+    split = collision.axial_split(part, k, pose, _APART_M, 2.0 * tol)
+    if split.empty:
+        return 0.0
     short = []
-    for sign in ((1.0, -1.0) if mate.kind == "axis" else (1.0,)):
+    for sign in (1.0, -1.0):
         s = far
         nearest = math.inf  # the nearest it passes the base, far (> 2 mm) from the pose
         for _ in range(_APPROACH_STEPS):
             moved = Pose(tuple(p + sign * s * a for p, a in zip(pose.position, axis)),
                          pose.rotation)
-            d = collision.base_distance(part, k, moved, mode)
+            d = collision.split_distance(part, split.blocking, moved)
             if d <= _APPROACH_TOL_M or s <= 0.0:
                 break
             if s > _PASSING_FAR_M:
                 nearest = min(nearest, d)
             s = max(0.0, s - d)
-        short.append(max(s, 0.0))
         if passes is not None and s <= _INSIDE_BASE_M:
-            passes.append(nearest)  # an approach that gets there: what it passed on the way
+            passed = _passed(collision, part, split, pose, axis, sign, far, tol)
+            if passed is None:
+                s, nearest = _approach(collision, part, k, mode, pose, axis, sign, far)
+            else:
+                nearest = min(nearest, passed, split.far_gap)
+            if s <= _INSIDE_BASE_M:
+                passes.append(nearest)  # an approach that gets there: what it passed on the way
+        short.append(max(s, 0.0))
     return min(short)
+
+
+def _approach(collision: CollisionWorld, part: str, k: int, mode, pose, axis, sign: float,
+              far: float) -> tuple[float, float]:
+    """One way of ``_depth_into_base`` measured to every face the mode checks: how far
+    short of ``pose`` the part stops, and the nearest it passes the base far (> 2 mm) from
+    it."""
+    s = far
+    nearest = math.inf
+    for _ in range(_APPROACH_STEPS):
+        moved = Pose(tuple(p + sign * s * a for p, a in zip(pose.position, axis)),
+                     pose.rotation)
+        d = collision.base_distance(part, k, moved, mode)
+        if d <= _APPROACH_TOL_M or s <= 0.0:
+            break
+        if s > _PASSING_FAR_M:
+            nearest = min(nearest, d)
+        s = max(0.0, s - d)
+    return max(s, 0.0), nearest
+
+
+def _passed(collision: CollisionWorld, part: str, split, pose, axis, sign: float, far: float,
+            tol: float) -> float | None:
+    """How near an approach along ``axis`` (``sign``: which way) passes the base faces
+    lying radially apart from the part by under twice ``tol``, more than 2 mm from
+    ``pose`` (inf: none): their distance with the part moved to where the nearest of them
+    is beside the part face nearest it radially (``CollisionWorld.passed_distance``). No
+    move comes nearer them than their radial and axial gaps allow, so the least distance
+    of the way lies between that bound and the distance met; None where that leaves it
+    open (a contact tolerance or a printed digit between them: a coarse polygon's rim,
+    whose radial gap is its chord's, or nothing beside them met)."""
+    if not split.passing:
+        return math.inf
+    t_lo, t_hi = (_PASSING_FAR_M, far) if sign > 0.0 else (-far, -_PASSING_FAR_M)
+    bound, met = collision.passed_distance(part, split, pose, axis, t_lo, t_hi, 2.0 * tol)
+    if math.isnan(met):
+        return None
+    value = met if met < math.inf else bound
+    return value if _told_alike(bound, value, tol) else None
+
+
+def _told_alike(low: float, high: float, tol: float) -> bool:
+    """Whether every value in [low, high] makes the same passing warnings (``scene_warnings``:
+    under twice ``tol`` the turned approaches run; under ``tol`` it is warned of, printed
+    to two digits)."""
+    if any(low < limit <= high for limit in (tol, 2.0 * tol)):
+        return False
+    return low >= tol or f"{low * 1e3:.2g}" == f"{high * 1e3:.2g}"
 
 
 def _floating_final(collision: CollisionWorld, body, i: int, k: int, mate: cn.Mate, pose,
@@ -1536,6 +1610,10 @@ _PASSING_FAR_M = 0.002
 # The approach of ``_depth_into_base``: its contact tolerance (m) and its step budget.
 _APPROACH_TOL_M = 1e-5
 _APPROACH_STEPS = 5000
+# A base face radially farther than this (m) from a part moved along an axis is left out of
+# the approach's steps (``axial_split``): twice its contact tolerance, so it can neither
+# end an approach nor be met.
+_APART_M = 2.0 * _APPROACH_TOL_M
 
 
 def _overlap(a: tuple[list[float], list[float]], b: tuple[list[float], list[float]]) -> float:
@@ -1943,7 +2021,7 @@ def scene_warnings(scene: Scene, collision: CollisionWorld,
         snapped = cn.recognise(mate, final) or final
         passes: list[float] = []
         depth = _depth_into_base(collision, body.name, k, mate, snapped,
-                                 body.reach_from_origin, passes)
+                                 body.reach_from_origin, passes, tol)
         if depth > _INSIDE_BASE_M:
             out.append(f"parts[{i}].assembly.final_pose: puts {body.name} about "
                        f"{depth * 1e3:.2g} mm into the base (on {mate.name}): the base stops "
@@ -1959,7 +2037,7 @@ def scene_warnings(scene: Scene, collision: CollisionWorld,
                 turned = Pose(sp.add(c, sp.quat_rotate(q, sp.sub(snapped.position, c))),
                               sp.quat_mul(q, snapped.rotation))
                 _depth_into_base(collision, body.name, k, mate, turned,
-                                 body.reach_from_origin, passes)
+                                 body.reach_from_origin, passes, tol)
         if mate.kind == "axis" and depth <= _INSIDE_BASE_M:
             out += _floating_final(collision, body, i, k, mate, snapped,
                                    assembly.final_distance)
