@@ -1,0 +1,170 @@
+"""The scene warnings' approach along an axis constraint (``replay._depth_into_base``) on
+finely cut meshes: a CAD user's trial, two 100k-face meshes (a peg in a bored boss, 0.2 mm
+radial clearance), took ~66 s to record, ~65 s of it this check, each ~0.2 mm step past the
+bore's rim a whole-mesh fcl query. It now steps to the faces a move along the axis can
+meet and asks the rim, lying radially apart, once; the warnings are those of the approach
+as it was (kept here as the reference)."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from vade_replay import replay
+from vade_replay import spatial as sp
+from vade_replay.collision import SKIP_COAXIAL, SKIP_COPLANAR, CollisionWorld
+
+from conftest import make_session
+
+
+def _reference_depth(collision, part, k, mate, pose, reach, passes=None, tol=0.0):
+    """``_depth_into_base`` as it was: every step the part's whole SKIP check's distance."""
+    mode = SKIP_COAXIAL if mate.kind == "axis" else SKIP_COPLANAR
+    axis = mate.base_dirs[0]
+    if collision.base_distance(part, k, pose, mode) == math.inf:
+        return 0.0
+    far = collision.base_radius + math.sqrt(sp.dot(pose.position, pose.position)) + reach \
+        + 0.01
+    short = []
+    for sign in ((1.0, -1.0) if mate.kind == "axis" else (1.0,)):
+        s, nearest = far, math.inf
+        for _ in range(replay._APPROACH_STEPS):
+            moved = replay.Pose(tuple(p + sign * s * a for p, a in zip(pose.position, axis)),
+                                pose.rotation)
+            d = collision.base_distance(part, k, moved, mode)
+            if d <= replay._APPROACH_TOL_M or s <= 0.0:
+                break
+            if s > replay._PASSING_FAR_M:
+                nearest = min(nearest, d)
+            s = max(0.0, s - d)
+        short.append(max(s, 0.0))
+        if passes is not None and s <= replay._INSIDE_BASE_M:
+            passes.append(nearest)
+    return min(short)
+
+
+def _peg_in_boss(peg_sections: int, bore_sections: int, physics: dict | None = None,
+                 final_z: float = 25.0):
+    """The trial's shape: a bracket (a 10 mm plate, and on it a boss with a 5 mm bore, 20 mm
+    deep, a mesh file) and a 4.8 mm peg 40 mm long (a mesh file), both cut into many
+    sections and written as 32-bit STL (the fit lands just under 0.2 mm, twice the default
+    contact tolerance, as the trial's did); the final pose on the plate (z 25 mm)."""
+    import trimesh
+    files = {
+        "boss.stl": trimesh.creation.annulus(r_min=5, r_max=12, height=20,
+                                             sections=bore_sections).export(file_type="stl"),
+        "peg.stl": trimesh.creation.cylinder(radius=4.8, height=40,
+                                             sections=peg_sections).export(file_type="stl")}
+    doc = {
+        "format": "vade-session/1", "name": "peg_in_boss", "units": "mm",
+        "physics": {"gravity": [0, 0, -9810], **(physics or {})},
+        "base": {"name": "bracket", "shape": {"type": "compound", "children": [
+            {"type": "box", "size": [120, 80, 10]},
+            {"type": "mesh", "file": "boss.stl", "pose": {"position": [30, 0, 15]}}]}},
+        "parts": [{"name": "peg", "density": 7800, "pose": {"position": [250, 0, 760]},
+                   "shape": {"type": "mesh", "file": "peg.stl"},
+                   "assembly": {"constraints": [{
+                       "type": "axis", "name": "peg_in_bore", "radius": 5,
+                       "part": {"point": [0, 0, 0], "direction": [0, 0, 1]},
+                       "base": {"point": [30, 0, 15], "direction": [0, 0, 1]}}],
+                       "final_pose": {"position": [30, 0, final_z]},
+                       "final_tolerance": {"distance": 1, "angle_deg": 180}}}],
+        "environment": [{"name": "table", "shape": {"type": "box", "size": [1200, 800, 40]},
+                         "pose": {"position": [0, 0, 720]}}],
+        "tracker": {"rate_hz": 60, "duration_s": 0.1, "devices": {
+            "left_hand": [{"t": 0, "position": [0, 200, 950], "grip": True}],
+            "right_hand": [{"t": 0.0, "position": [250, 0, 760], "grip": False}]}}}
+    return make_session(doc, files)
+
+
+def _warnings(session, depth=None) -> tuple[list[str], list[float], int]:
+    """The scene warnings, what each approach passed, and the fcl queries the approaches
+    asked; with ``depth`` as ``_depth_into_base``."""
+    scene = session.build_scene()
+    collision = CollisionWorld(scene)
+    asked = replay._depth_into_base
+    passed: list[float] = []
+    queries = [0]
+
+    def traced(*args):
+        # (scene_warnings puts the counters back as they were: counted here.)
+        before, count = len(args[6]), collision.stats["fcl_distance_queries"]
+        result = (depth or asked)(*args)
+        passed.extend(args[6][before:])
+        queries[0] += collision.stats["fcl_distance_queries"] - count
+        return result
+    replay._depth_into_base = traced
+    try:
+        warnings = replay.scene_warnings(scene, collision, session.doc)
+    finally:
+        replay._depth_into_base = asked
+    return warnings, passed, queries[0]
+
+
+@pytest.mark.parametrize("physics, final_z, said", [
+    ({}, 25.0, ""),                        # the trial: no warning, turned approaches run
+    ({"coaxial_fit": "faces", "contact_tolerance": 0.25}, 25.0, "passes the base 0.2 mm"),
+    ({"contact_tolerance": 0.25}, 25.0, ""),  # the rim in a radial fit's pair of queries
+    ({"contact_tolerance": 0.3}, 25.0, ""),   # over 0.25 mm: more of the rim apart
+    ({"contact_tolerance": 0.0999}, 25.0, ""),  # the rim at twice the tolerance and more
+    ({}, 21.3, "about 3.7 mm into the base"),
+])
+def test_the_approach_warns_as_the_whole_mesh_steps_did(physics, final_z, said):
+    """A 320-section peg in a 160-section bore (1,280 faces each), 0.2 mm clear: the
+    scene warnings, and what each approach passed, are those of the approach that measured
+    every step to the whole check, from a fraction of its fcl queries."""
+    session = _peg_in_boss(320, 160, physics, final_z)
+    warnings, passed, asked = _warnings(session)
+    reference, reference_passed, reference_asked = _warnings(session, _reference_depth)
+    assert warnings == reference
+    assert (said in " ".join(warnings)) if said else not any(
+        "passes the base" in w or "into the base" in w for w in warnings)
+    tol = session.build_scene().physics.contact_tolerance
+    assert len(passed) == len(reference_passed)
+    for new, old in zip(passed, reference_passed):
+        # The rim asked beside the part: the same distance; what is farther than twice the
+        # tolerance may be sampled elsewhere on the way (only its side of 2 tol is read).
+        assert new == pytest.approx(old, rel=1e-9) or min(new, old) >= 2.0 * tol
+    if final_z == 25.0 and "coaxial_fit" in physics or not physics:
+        assert reference_asked > 10 * asked
+
+
+def test_a_100k_face_peg_in_its_bore_asks_a_few_fcl_queries():
+    """The trial's size (100,000 faces each, the peg 25,000 sections, the bore 12,500): the
+    check asks a few dozen fcl queries in all (the four approaches, each both ways), where
+    the whole-mesh steps asked ~100 each way past the rim (~50 ms to ~1 s each at this size:
+    minutes). The pass is the rim's, just under twice the tolerance (0.2 mm in 32 bits)."""
+    session = _peg_in_boss(25_000, 12_500)
+    warnings, passed, asked = _warnings(session)
+    assert len(session.build_scene().base.faces) == 100_012
+    assert not any("passes the base" in w or "into the base" in w for w in warnings)
+    assert len(passed) == 4 and all(1.9999e-4 < p < 2e-4 for p in passed)
+    assert asked < 40
+
+
+@pytest.mark.parametrize("radius_mm", [4.9, 4.95])
+def test_a_coarse_rim_whose_bound_leaves_the_warning_open_is_approached_as_before(radius_mm):
+    """The 32-gon pin and bore of ``test_shaft`` (``coaxial_fit: faces``): the rim's radial
+    gap is its chord's, up to 0.024 mm under what the pin passes at some turns, and a
+    printed digit lies between: those ways are approached as before, every step to the
+    whole check (``replay._approach``), and the warning is the reference's."""
+    from test_shaft import _pin_in_bore
+    doc = _pin_in_bore(radius_mm)
+    doc["physics"]["coaxial_fit"] = "faces"
+    session = make_session(doc)
+    whole = replay._approach
+    ways = [0]
+
+    def counted(*args):
+        ways[0] += 1
+        return whole(*args)
+    replay._approach = counted
+    try:
+        warnings, passed, _ = _warnings(session)
+    finally:
+        replay._approach = whole
+    reference, reference_passed, _ = _warnings(session, _reference_depth)
+    assert warnings == reference and passed == reference_passed
+    assert any("passes the base" in w for w in warnings)
+    assert ways[0] > 0
