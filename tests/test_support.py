@@ -180,11 +180,10 @@ def test_a_rod_on_a_line_of_its_facets_spans_a_slot_as_the_block_does():
         assert np.allclose(a.parts[0].position, b.parts[0].position, atol=1e-12)
 
 
-def test_a_u_shaped_part_is_not_held_by_a_rib_under_its_notch():
-    """A review: a U-shaped part (two legs 5 mm wide, 45 mm apart) whose legs are over open
-    slots, with ribs under its bridge between them, was held up by the ribs, which its
-    legs never touch (the first version took the hull of its corners, not its faces). It
-    leaves the plane as it starts to slide, as without the ribs, and lands on the ribs."""
+def _u_doc(*pieces: tuple[float, float, float, float]) -> dict:
+    """``plane_block_edge`` with its block made a U (two legs 5 mm wide at x = +-22.5 mm, a
+    bridge over them; its centre of mass over the notch) and its plate made of ``pieces``
+    (x0, x1, y0, y1: boxes 20 mm thick), beside the wall."""
     doc = json.loads((RECORDINGS / "plane_block_edge.json").read_text())
     part = doc["parts"][0]
     part["shape"] = {"type": "compound", "children": [
@@ -192,14 +191,21 @@ def test_a_u_shaped_part_is_not_held_by_a_rib_under_its_notch():
         {"type": "box", "size": [0.005, 0.05, 0.02], "pose": {"position": [0.0225, 0, -0.01]}},
         {"type": "box", "size": [0.05, 0.05, 0.02], "pose": {"position": [0, 0, 0.01]}}]}
     part["assembly"]["constraints"][0]["part"]["point"] = [0, 0, -0.02]
-
-    def box(x0, x1, y0, y1):
-        return {"type": "box", "size": [x1 - x0, y1 - y0, 0.02],
-                "pose": {"position": [(x0 + x1) / 2, (y0 + y1) / 2, 0.0]}}
     wall = doc["base"]["shape"]["children"][1]
-    doc["base"]["shape"]["children"] = [box(-0.15, -0.03, -0.15, 0.13), box(0.03, 0.15, -0.15, 0.13),
-                                        box(-0.012, -0.006, -0.15, 0.13),
-                                        box(0.006, 0.012, -0.15, 0.13), wall]
+    doc["base"]["shape"]["children"] = [
+        {"type": "box", "size": [x1 - x0, y1 - y0, 0.02],
+         "pose": {"position": [(x0 + x1) / 2, (y0 + y1) / 2, 0.0]}}
+        for x0, x1, y0, y1 in pieces] + [wall]
+    return doc
+
+
+def test_a_u_shaped_part_is_not_held_by_a_rib_under_its_notch():
+    """A review: a U-shaped part (two legs 5 mm wide, 45 mm apart) whose legs are over open
+    slots, with ribs under its bridge between them, was held up by the ribs, which its
+    legs never touch (the first version took the hull of its corners, not its faces). It
+    leaves the plane as it starts to slide, as without the ribs, and lands on the ribs."""
+    y = (-0.15, 0.13)
+    doc = _u_doc((-0.15, -0.03, *y), (0.03, 0.15, *y), (-0.012, -0.006, *y), (0.006, 0.012, *y))
     records = run_records(doc)
     changes = [(r.frame, e.cause) for r in records for e in r.events if hasattr(e, "to_mode")]
     sliding = next(f for f, c in changes if c == "static_friction_exceeded")
@@ -334,21 +340,8 @@ def test_a_u_shaped_part_is_not_held_by_a_rib_under_its_centre_of_mass():
     touches, was held by the rib and slid 22 frames touching nothing. Its own faces do not
     cover its centre of mass, so the rib under it is not asked: it leaves as it starts to
     slide, as over the ribs beside its centre of mass."""
-    doc = json.loads((RECORDINGS / "plane_block_edge.json").read_text())
-    part = doc["parts"][0]
-    part["shape"] = {"type": "compound", "children": [
-        {"type": "box", "size": [0.005, 0.05, 0.02], "pose": {"position": [-0.0225, 0, -0.01]}},
-        {"type": "box", "size": [0.005, 0.05, 0.02], "pose": {"position": [0.0225, 0, -0.01]}},
-        {"type": "box", "size": [0.05, 0.05, 0.02], "pose": {"position": [0, 0, 0.01]}}]}
-    part["assembly"]["constraints"][0]["part"]["point"] = [0, 0, -0.02]
-
-    def box(x0, x1, y0, y1):
-        return {"type": "box", "size": [x1 - x0, y1 - y0, 0.02],
-                "pose": {"position": [(x0 + x1) / 2, (y0 + y1) / 2, 0.0]}}
-    wall = doc["base"]["shape"]["children"][1]
-    doc["base"]["shape"]["children"] = [box(-0.15, -0.03, -0.15, 0.13),
-                                        box(0.03, 0.15, -0.15, 0.13),
-                                        box(-0.003, 0.003, -0.15, 0.13), wall]
+    y = (-0.15, 0.13)
+    doc = _u_doc((-0.15, -0.03, *y), (0.03, 0.15, *y), (-0.003, 0.003, *y))
     records, off, _ = _slide(doc)
     changes = [(r.frame, e.cause) for r in records for e in r.events if hasattr(e, "to_mode")]
     started = next(f for f, c in changes if c == "static_friction_exceeded")
