@@ -177,6 +177,10 @@ def _flat2(points: np.ndarray, point: np.ndarray,
 # A centre of mass no farther than this (m) outside the hull of the part's footprint on a
 # plane is over it (``CollisionWorld.stand_in``: round-off put a rod's 4e-18 m off its line).
 _OVERHANG_MIN_M: Final = 1e-9
+# ``passed_distance``: passing faces alike to this (m) in radial extent and middle along the
+# axis are one candidate; at most this many candidates are tried for a place beside the part.
+_RING_KEY_M: Final = 1e-9
+_PASSED_TRIES: Final = 16
 @dataclass(eq=False)
 class AxialSplit:
     """The base faces of a ``SKIP_COAXIAL`` check split for a part moved along its axis
@@ -543,15 +547,31 @@ class CollisionWorld:
             bound = min(bound, float(lower[i]))
             if float(lower[i]) >= near:
                 continue
-            pair = np.maximum(np.maximum(float(q.r_lo[i]) - q.part_r_hi,
-                                         q.part_r_lo - float(q.r_hi[i])), 0.0)
-            nearest = pair <= float(pair.min())
-            a = np.maximum(float(q.z_mid[i]) - q.part_z_hi[nearest], t_lo)
-            b = np.minimum(float(q.z_mid[i]) - q.part_z_lo[nearest], t_hi)
-            j = int(np.argmax(b - a))
-            if not float(b[j]) >= float(a[j]):
+            # The nearest by the bound first; where the part faces nearest it radially are
+            # beside it only off the interval (a counterbore's floor, beside the shoulder
+            # only in the last 2 mm), the next unlike it (its radial extent and middle
+            # along the axis): its wall is. Any t of the interval gives a distance met.
+            order = np.argsort(lower, kind="stable")
+            order = order[lower[order] < near]
+            keys = np.round(np.stack([q.r_lo[order], q.r_hi[order], q.z_mid[order]], axis=1)
+                            / _RING_KEY_M)
+            _, first = np.unique(keys, axis=0, return_index=True)
+            found = False
+            t = 0.0
+            for candidate in order[np.sort(first)][:_PASSED_TRIES].tolist():
+                i = int(candidate)
+                pair = np.maximum(np.maximum(float(q.r_lo[i]) - q.part_r_hi,
+                                             q.part_r_lo - float(q.r_hi[i])), 0.0)
+                nearest = pair <= float(pair.min())
+                a = np.maximum(float(q.z_mid[i]) - q.part_z_hi[nearest], t_lo)
+                b = np.minimum(float(q.z_mid[i]) - q.part_z_lo[nearest], t_hi)
+                j = int(np.argmax(b - a))
+                if float(b[j]) >= float(a[j]):
+                    t = 0.5 * (float(a[j]) + float(b[j]))
+                    found = True
+                    break
+            if not found:
                 return bound, math.nan
-            t = 0.5 * (float(a[j]) + float(b[j]))
             moved = sp.Pose(sp.add(base_from_part.position, sp.scale(axis, t)),
                             base_from_part.rotation)
             met = min(met, self.split_distance(part, [(q.model, q.obj)], moved))
