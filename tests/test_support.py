@@ -58,6 +58,26 @@ def test_the_hull_s_point_nearest_a_foot(point, nearest):
     assert (d, x, y) == pytest.approx((math.hypot(0.03, 0.01), 0.05, 0.0), abs=1e-15)
 
 
+def test_the_distance_to_a_part_s_pieces_in_its_plane():
+    """``distance_to_pieces``, which tells whether a part's own faces cover its centre of
+    mass: 0 in or on a triangle, the nearest edge or segment's distance outside; a
+    triangle of no area is its edges (its sides' signs would put every point in it)."""
+    tri = np.array([[(0.0, 0.0), (0.02, 0.0), (0.0, 0.02)]])
+    none = np.zeros((0, 2, 2))
+    assert support.distance_to_pieces((0.005, 0.005), tri, none) == 0.0
+    assert support.distance_to_pieces((0.01, 0.01), tri, none) == 0.0  # on its long edge
+    assert support.distance_to_pieces((0.03, 0.0), tri, none) == pytest.approx(0.01, abs=1e-15)
+    flat = np.array([[(0.0, 0.0), (0.01, 0.0), (0.02, 0.0)]])
+    assert support.distance_to_pieces((0.01, 0.005), flat, none) == pytest.approx(0.005,
+                                                                                 abs=1e-15)
+    assert support.distance_to_pieces((0.05, 0.0), flat, none) == pytest.approx(0.03,
+                                                                               abs=1e-15)
+    line = np.array([[(-0.05, 0.0), (0.05, 0.0)]])
+    assert support.distance_to_pieces((0.01, 0.003), np.zeros((0, 3, 2)), line) == \
+        pytest.approx(0.003, abs=1e-15)
+    assert support.distance_to_pieces((0.0, 0.0), np.zeros((0, 3, 2)), none) == math.inf
+
+
 def test_crossings_of_segments():
     a = np.array([[(-1.0, 0.0), (1.0, 0.0)], [(-1.0, 2.0), (1.0, 2.0)]])
     b = np.array([[(0.5, -1.0), (0.5, 1.0)],     # crosses the first at (0.5, 0)

@@ -173,16 +173,20 @@ def nearest_in_hull(point, hull: np.ndarray) -> tuple[float, float, float]:
 
 def distance_to_pieces(point, triangles: np.ndarray, segments: np.ndarray) -> float:
     """How far 2-D ``point`` is from the nearest of ``triangles`` (k, 3, 2) and ``segments``
-    (j, 2, 2): 0 inside or on a triangle, ``inf`` where there are none."""
+    (j, 2, 2): 0 inside or on a triangle, ``inf`` where there are none. A triangle of no
+    area (its corners in a line) is its edges: the signs of its sides tell nothing."""
     p = np.asarray(point, dtype=np.float64)
     best = math.inf
     if len(triangles):
         a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
 
         def side(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-            return (v[:, 0] - u[:, 0]) * (p[1] - u[:, 1]) - (v[:, 1] - u[:, 1]) * (p[0] - u[:, 0])
+            return ((v[:, 0] - u[:, 0]) * (p[1] - u[:, 1])
+                    - (v[:, 1] - u[:, 1]) * (p[0] - u[:, 0]))
         s1, s2, s3 = side(a, b), side(b, c), side(c, a)
-        if np.any(((s1 >= 0) & (s2 >= 0) & (s3 >= 0)) | ((s1 <= 0) & (s2 <= 0) & (s3 <= 0))):
+        area = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+        inside = ((s1 >= 0) & (s2 >= 0) & (s3 >= 0)) | ((s1 <= 0) & (s2 <= 0) & (s3 <= 0))
+        if np.any(inside & (area != 0.0)):
             return 0.0
         segments = np.concatenate([segments.reshape(-1, 2, 2), np.stack([a, b], axis=1),
                                    np.stack([b, c], axis=1), np.stack([c, a], axis=1)])
