@@ -366,3 +366,70 @@ def test_a_u_shaped_part_is_not_held_by_a_rib_under_its_centre_of_mass():
     changes = [(r.frame, e.cause) for r in records for e in r.events if hasattr(e, "to_mode")]
     started = next(f for f, c in changes if c == "static_friction_exceeded")
     assert off == [started]
+
+
+def test_a_triangle_wound_either_way_covers_its_inside_and_its_edges_measure_outside():
+    """``distance_to_pieces`` by closed forms: a triangle listed clockwise covers its inside
+    as one listed counter-clockwise does (a part's faces on a plane face away from it), and
+    a point beside an edge is that edge's perpendicular distance from it, not a corner's."""
+    none = np.zeros((0, 2, 2))
+    ccw = np.array([[(0.0, 0.0), (0.02, 0.0), (0.0, 0.02)]])
+    cw = ccw[:, ::-1]
+    for tri in (ccw, cw):
+        assert support.distance_to_pieces((0.005, 0.005), tri, none) == 0.0
+        assert support.distance_to_pieces((0.01, -0.004), tri, none) == \
+            pytest.approx(0.004, abs=1e-15)                                  # below edge ab
+        assert support.distance_to_pieces((-0.003, 0.01), tri, none) == \
+            pytest.approx(0.003, abs=1e-15)                                  # left of edge ca
+        assert support.distance_to_pieces((0.02, 0.02), tri, none) == \
+            pytest.approx(math.sqrt(2) * 0.01, abs=1e-15)                    # past the long edge
+
+
+def _leaves_as_its_hull_passes_the_edge(doc: dict, far: float) -> None:
+    """On the plain plate a part held by the hull of its footprint slides off its far edge
+    (y = -0.15) as the block does: it starts to slide and stays on, its bottom on the
+    plate's top (z = 0.03 in the base frame), and leaves once, in the frame where the
+    footprint's point nearest its centre of mass (``far`` past it along -y, part frame)
+    passes the edge, not as it starts to slide."""
+    records, off, sliding = _slide(doc)
+    changes = [(r.frame, e.cause) for r in records for e in r.events if hasattr(e, "to_mode")]
+    started = next(f for f, c in changes if c == "static_friction_exceeded")
+    assert len(off) == 1 and off[0] > started
+    assert len(sliding) >= 15
+    for r in sliding:
+        assert _in_base(r).position[2] == pytest.approx(0.03, abs=1e-9)
+    before, leaving = (next(r for r in records if r.frame == k) for k in (off[0] - 1, off[0]))
+    assert _in_base(before).position[1] + far > -0.15 > _in_base(leaving).position[1] + far
+
+
+def test_a_u_shaped_part_on_a_plain_plate_is_held_by_its_legs():
+    """The U whose centre of mass is over its notch (its own faces do not cover it), its
+    legs wholly on a plain plate: the hull of its legs' contact holds it, and it slides
+    off the far edge as the block does (the notch must not make it leave at once)."""
+    doc = _u_doc((-0.15, 0.15, -0.15, 0.13))
+    _leaves_as_its_hull_passes_the_edge(doc, 0.0)
+
+
+def test_a_part_overhanging_its_footprint_by_half_a_millimetre_is_held_on_a_plate():
+    """An L whose centre of mass is only ~0.53 mm past its footprint (a foot 50 mm square,
+    an arm 122 mm long over it from x = -25 mm: centre of mass at x = 36 * 122 / 172 mm =
+    25.53 mm): held on a plain plate as a larger overhang is (the stand-in for its centre
+    of mass is the footprint's edge, on its own faces), sliding to the plate's far edge."""
+    doc = json.loads((RECORDINGS / "plane_block_edge.json").read_text())
+    doc["parts"][0]["shape"] = {"type": "compound", "children": [
+        {"type": "box", "size": [0.05, 0.05, 0.02], "pose": {"position": [0, 0, -0.01]}},
+        {"type": "box", "size": [0.122, 0.05, 0.02], "pose": {"position": [0.036, 0, 0.01]}}]}
+    _leaves_as_its_hull_passes_the_edge(doc, 0.0)
+
+
+def test_an_l_whose_arm_clears_the_plate_by_a_millimetre_stands_on_its_foot():
+    """An L whose arm (75 mm long, beside its foot) hangs 1 mm above the plate, ten
+    contact tolerances (0.1 mm) clear: only the foot's vertices are its footprint, so its
+    centre of mass (x = 71250 * 62.5 / 121250 mm = 36.7 mm) overhangs it and the foot's
+    edge stands for it; on a plain plate it slides to the far edge as the block does."""
+    doc = json.loads((RECORDINGS / "plane_block_edge.json").read_text())
+    doc["parts"][0]["shape"] = {"type": "compound", "children": [
+        {"type": "box", "size": [0.05, 0.05, 0.02], "pose": {"position": [0, 0, -0.01]}},
+        {"type": "box", "size": [0.075, 0.05, 0.019],
+         "pose": {"position": [0.0625, 0, -0.0095]}}]}
+    _leaves_as_its_hull_passes_the_edge(doc, 0.0)
