@@ -221,3 +221,39 @@ def test_a_counterbore_whose_floor_is_beside_the_shoulder_only_at_the_end(tol_mm
     assert fallbacks == ways
     if ways == 0:
         assert asked < reference_asked
+
+
+def _peg_under_a_guide_ring(physics: dict):
+    """A 4.8 mm peg 8 mm long placed at z 15 mm (11 to 19 mm), under a guide ring (a 5 mm
+    bore 2 mm deep at z 25 to 27 mm, a mesh file), nothing else round it: its way in from
+    above passes the ring 0.2 mm clear 6 mm and more above where it ends."""
+    import trimesh
+    files = {
+        "ring.stl": trimesh.creation.annulus(r_min=5, r_max=12, height=2,
+                                             sections=160).export(file_type="stl"),
+        "peg.stl": trimesh.creation.cylinder(radius=4.8, height=8,
+                                             sections=320).export(file_type="stl")}
+    return _bracket(files, "peg_under_ring", {"gravity": [0, 0, -9810], **physics},
+                    [{"type": "mesh", "file": "ring.stl", "pose": {"position": [30, 0, 26]}}],
+                    "peg", [30, 0, 15], [30, 0, 15])
+
+
+@pytest.mark.parametrize("physics, said", [
+    ({"coaxial_fit": "faces", "contact_tolerance": 0.25}, "passes the base 0.2 mm"),
+    ({"coaxial_fit": "faces"}, ""),
+])
+def test_a_guide_ring_passed_well_above_the_final_pose_is_warned_of(physics, said):
+    """The ring lies axially past the peg's span at its final pose (6 mm above it): the
+    bound on what the way passes sweeps the part over the whole way, so the ring is met
+    (0.2 mm clear, under a 0.25 mm tolerance: warned of, as by the whole-mesh steps; under
+    twice 0.1 mm: no warning) and no way is told by its axial gap at the final pose."""
+    session = _peg_under_a_guide_ring(physics)
+    (warnings, passed, asked), fallbacks = _warnings_and_fallbacks(session)
+    reference, reference_passed, reference_asked = _warnings(session, _reference_depth)
+    assert warnings == reference
+    assert fallbacks == 0 and asked < reference_asked  # the ring asked beside the peg
+    assert (said in " ".join(warnings)) if said else not any(
+        "passes the base" in w for w in warnings)
+    assert min(passed) == pytest.approx(min(reference_passed), rel=1e-6)
+    assert 1.9e-4 < min(passed) < 2e-4
+
