@@ -257,3 +257,49 @@ def test_a_guide_ring_passed_well_above_the_final_pose_is_warned_of(physics, sai
     assert min(passed) == pytest.approx(min(reference_passed), rel=1e-6)
     assert 1.9e-4 < min(passed) < 2e-4
 
+
+
+@pytest.mark.parametrize("low_mm, high_mm, alike", [
+    (0.05, 0.05, True),      # one value
+    (0.0511, 0.0514, True),  # under tol, the same two printed digits (0.051)
+    (0.051, 0.056, False),   # under tol, printed 0.051 and 0.056 differ
+    (0.05, 0.15, False),     # tol between: warned of or not
+    (0.15, 0.25, False),     # twice tol between: turned approaches run or not
+    (0.12, 0.19, True),      # between tol and twice tol: neither warned nor run differently
+    (0.25, 3.0, True),       # past twice tol: nothing told
+])
+def test_a_range_of_passing_distances_is_told_alike_only_with_no_limit_or_digit_inside(
+        low_mm, high_mm, alike):
+    """``_told_alike`` by what ``scene_warnings`` reads of a passing distance (tol 0.1 mm):
+    under twice tol the turned approaches run, under tol it is warned of with two digits."""
+    assert replay._told_alike(low_mm * 1e-3, high_mm * 1e-3, 1e-4) is alike
+
+
+def test_the_passed_distance_is_open_where_no_part_face_comes_beside_the_ring():
+    """``passed_distance`` on the guide ring: over the whole way down the ring is asked
+    beside the peg (its bound no more than the distance met, both its 0.2 mm clearance);
+    over a stretch of the way too short to bring the peg up beside it (the first 1 mm of
+    the 6 mm), no face is asked and the distance is NaN (``_passed`` then falls back)."""
+    session = _peg_under_a_guide_ring({"coaxial_fit": "faces", "contact_tolerance": 0.25})
+    scene = session.build_scene()
+    collision = CollisionWorld(scene)
+    body = scene.parts[0]
+    mate = body.assembly.mates[0]
+    pose = sp.Pose((0.03, 0.0, 0.015), (0.0, 0.0, 0.0, 1.0))
+    axis = mate.base_dirs[0]
+    split = collision.axial_split(body.name, 0, pose, replay._APART_M, 5e-4)
+    assert split.passing
+    bound, met = collision.passed_distance(body.name, split, pose, axis, 0.002, 0.1, 0.01)
+    assert 1.9e-4 < bound <= met < 2e-4
+    bound, met = collision.passed_distance(body.name, split, pose, axis, 0.0, 0.001, 0.01)
+    assert 5e-3 < bound < 0.01 and math.isnan(met)
+
+
+def test_an_approach_with_nothing_met_beside_the_passing_faces_is_not_told():
+    """``_passed``: where ``passed_distance`` met nothing beside the passing faces (NaN),
+    the way is left open (None: approached as before), not told by the bound alone."""
+    class Collision:
+        def passed_distance(self, *args):
+            return 1e-5, math.nan
+    split = type("Split", (), {"passing": [object()]})()
+    assert replay._passed(Collision(), "peg", split, None, (0, 0, 1), 1.0, 0.1, 1e-4) is None
