@@ -433,3 +433,41 @@ def test_an_l_whose_arm_clears_the_plate_by_a_millimetre_stands_on_its_foot():
         {"type": "box", "size": [0.075, 0.05, 0.019],
          "pose": {"position": [0.0625, 0, -0.0095]}}]}
     _leaves_as_its_hull_passes_the_edge(doc, 0.0)
+
+
+def _tilted(doc: dict, q) -> dict:
+    """The part described in a frame turned by ``q`` (its shape's children and its plane
+    constraint's part side turned by ``q``, its starting pose by the inverse): the same
+    solid in the same place, only its own frame's axes differ."""
+    doc = copy.deepcopy(doc)
+    part = doc["parts"][0]
+    for child in part["shape"]["children"]:
+        pose = child.get("pose", {})
+        child["pose"] = {"position": list(sp.quat_rotate(q, tuple(pose.get("position",
+                                                                     (0, 0, 0))))),
+                         "xyzw": list(q)}
+    side = part["assembly"]["constraints"][0]["part"]
+    side["point"], side["normal"] = (list(sp.quat_rotate(q, tuple(side[k])))
+                                    for k in ("point", "normal"))
+    part["pose"]["xyzw"] = list(sp.quat_conj(q))
+    return doc
+
+
+def test_an_overhanging_part_described_in_a_tilted_frame_slides_over_the_groove_alike():
+    """The L over a groove under its arm (above), its mesh and constraint given in a frame
+    turned 30 degrees about x and 20 about y (a CAD export's axes): the stand-in for its
+    centre of mass lies in its plane whatever the part's axes, so it slides as the upright
+    L does, the same changes in the same frames, the same places to round-off."""
+    doc = _grooved(_l_part(json.loads((RECORDINGS / "plane_block_edge.json").read_text())),
+                   0.028, 0.040)
+    q = sp.quat_mul(sp.quat_axis_angle((1, 0, 0), math.radians(30)),
+                    sp.quat_axis_angle((0, 1, 0), math.radians(20)))
+    upright, upright_off, _ = _slide(doc)
+    tilted, off, _ = _slide(_tilted(doc, q))
+    assert off == upright_off and len(off) == 1
+    assert [(r.frame, e.cause) for r in tilted for e in r.events if hasattr(e, "to_mode")] \
+        == [(r.frame, e.cause) for r in upright for e in r.events if hasattr(e, "to_mode")]
+    for a, b in zip(upright, tilted):
+        if a.frame > off[0]:
+            break
+        assert np.allclose(a.parts[0].position, b.parts[0].position, rtol=0, atol=1e-8)
