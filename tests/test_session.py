@@ -1122,3 +1122,23 @@ def test_a_valid_binary_ply_or_gltf_loads_as_before(kind):
     doc["parts"][0]["density"] = 2700.0
     doc["parts"][0].pop("assembly", None)
     make_session(doc, {name: data}).build_scene()
+
+
+def test_a_gltf_node_that_places_vertices_at_infinity_is_refused_by_name():
+    """As a NaN in a node's transform (above): an infinite translation along x puts the
+    8 corners' x at infinity, and that is refused by name with the count (not left to
+    fail later as mass properties or a constraint's extent)."""
+    doc = json.loads((RECORDINGS / "shaft_placed.json").read_text())
+    doc["parts"][0]["density"] = 2700.0
+    doc["parts"][0].pop("assembly", None)
+    scene = trimesh.Scene()
+    moved = np.eye(4)
+    moved[0, 3] = np.inf
+    scene.add_geometry(trimesh.creation.box(extents=[0.02, 0.03, 0.04]), transform=moved)
+    part = doc["parts"][0] | {"shape": {"type": "mesh", "file": "far.glb"}}
+    with pytest.raises(SessionError) as info:
+        make_session(doc | {"parts": [part]},
+                     {"far.glb": scene.export(file_type="glb")}).build_scene()
+    assert info.value.field == "parts[0].shape.file"
+    assert info.value.message == ("mesh 'far.glb' places 8 coordinates of its vertices at "
+                                  "NaN or infinity (a transform in the file?): fix the export")
