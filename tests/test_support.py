@@ -471,3 +471,11 @@ def test_an_overhanging_part_described_in_a_tilted_frame_slides_over_the_groove_
         if a.frame > off[0]:
             break
         assert np.allclose(a.parts[0].position, b.parts[0].position, rtol=0, atol=1e-8)
+
+
+def test_a_hull_of_one_point_is_that_point():
+    """A part meeting the plane at one corner (a cone's tip, a tilted box's corner): its
+    hull is that point, at the point's distance, and that point is the nearest."""
+    d, x, y = support.nearest_in_hull((0.03, 0.04), np.array([(0.0, 0.0)]))
+    assert (d, x, y) == pytest.approx((0.05, 0.0, 0.0), abs=1e-15)
+    assert support.distance_outside((0.0, 0.0), np.array([(0.0, 0.0)])) == 0.0
