@@ -1025,23 +1025,24 @@ def test_a_word_nan_or_inf_in_a_text_mesh_s_comment_is_not_a_coordinate():
         make_session(doc | {"parts": [part]}, {"bad.ply": bad}).build_scene()
 
 
-def test_a_gltf_node_that_places_vertices_at_nan_is_refused_by_name():
+@pytest.mark.parametrize("bad, name", [(np.nan, "moved.glb"), (np.inf, "far.glb")])
+def test_a_gltf_node_that_places_vertices_at_nan_or_infinity_is_refused_by_name(bad, name):
     """A helper's trial: a GLB whose vertices are finite but whose node's transform holds a
     NaN put every vertex at NaN; a part was then refused as "mass properties hold a
-    non-finite number". The loaded mesh's vertices are checked: named, with the count."""
+    non-finite number". The loaded mesh's vertices are checked: named, with the count; an
+    infinite translation too (a mutation audit: a NaN-only check left it to fail later)."""
     doc = json.loads((RECORDINGS / "shaft_placed.json").read_text())
     doc["parts"][0]["density"] = 2700.0
     doc["parts"][0].pop("assembly", None)
     scene = trimesh.Scene()
     moved = np.eye(4)
-    moved[0, 3] = np.nan
+    moved[0, 3] = bad
     scene.add_geometry(trimesh.creation.box(extents=[0.02, 0.03, 0.04]), transform=moved)
-    part = doc["parts"][0] | {"shape": {"type": "mesh", "file": "moved.glb"}}
+    part = doc["parts"][0] | {"shape": {"type": "mesh", "file": name}}
     with pytest.raises(SessionError) as info:
-        make_session(doc | {"parts": [part]},
-                     {"moved.glb": scene.export(file_type="glb")}).build_scene()
+        make_session(doc | {"parts": [part]}, {name: scene.export(file_type="glb")}).build_scene()
     assert info.value.field == "parts[0].shape.file"
-    assert info.value.message == ("mesh 'moved.glb' places 8 coordinates of its vertices at "
+    assert info.value.message == (f"mesh {name!r} places 8 coordinates of its vertices at "
                                   "NaN or infinity (a transform in the file?): fix the export")
 
 
@@ -1122,23 +1123,3 @@ def test_a_valid_binary_ply_or_gltf_loads_as_before(kind):
     doc["parts"][0]["density"] = 2700.0
     doc["parts"][0].pop("assembly", None)
     make_session(doc, {name: data}).build_scene()
-
-
-def test_a_gltf_node_that_places_vertices_at_infinity_is_refused_by_name():
-    """As a NaN in a node's transform (above): an infinite translation along x puts the
-    8 corners' x at infinity, and that is refused by name with the count (not left to
-    fail later as mass properties or a constraint's extent)."""
-    doc = json.loads((RECORDINGS / "shaft_placed.json").read_text())
-    doc["parts"][0]["density"] = 2700.0
-    doc["parts"][0].pop("assembly", None)
-    scene = trimesh.Scene()
-    moved = np.eye(4)
-    moved[0, 3] = np.inf
-    scene.add_geometry(trimesh.creation.box(extents=[0.02, 0.03, 0.04]), transform=moved)
-    part = doc["parts"][0] | {"shape": {"type": "mesh", "file": "far.glb"}}
-    with pytest.raises(SessionError) as info:
-        make_session(doc | {"parts": [part]},
-                     {"far.glb": scene.export(file_type="glb")}).build_scene()
-    assert info.value.field == "parts[0].shape.file"
-    assert info.value.message == ("mesh 'far.glb' places 8 coordinates of its vertices at "
-                                  "NaN or infinity (a transform in the file?): fix the export")
