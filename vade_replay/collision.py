@@ -181,6 +181,8 @@ _OVERHANG_MIN_M: Final = 1e-9
 # axis are one candidate; at most this many candidates are tried for a place beside the part.
 _RING_KEY_M: Final = 1e-9
 _PASSED_TRIES: Final = 16
+
+
 @dataclass(eq=False)
 class AxialSplit:
     """The base faces of a ``SKIP_COAXIAL`` check split for a part moved along its axis

@@ -1499,17 +1499,8 @@ def _depth_into_base(collision: CollisionWorld, part: str, k: int, mate: cn.Mate
         return 0.0
     short = []
     for sign in (1.0, -1.0):
-        s = far
-        nearest = math.inf  # the nearest it passes the base, far (> 2 mm) from the pose
-        for _ in range(_APPROACH_STEPS):
-            moved = Pose(tuple(p + sign * s * a for p, a in zip(pose.position, axis)),
-                         pose.rotation)
-            d = collision.split_distance(part, split.blocking, moved)
-            if d <= _APPROACH_TOL_M or s <= 0.0:
-                break
-            if s > _PASSING_FAR_M:
-                nearest = min(nearest, d)
-            s = max(0.0, s - d)
+        s, nearest = _steps(lambda moved: collision.split_distance(part, split.blocking,
+                                                                   moved), pose, axis, sign, far)
         if passes is not None and s <= _INSIDE_BASE_M:
             passed = _passed(collision, part, split, pose, axis, sign, far, tol)
             if passed is None:
@@ -1524,15 +1515,22 @@ def _depth_into_base(collision: CollisionWorld, part: str, k: int, mate: cn.Mate
 
 def _approach(collision: CollisionWorld, part: str, k: int, mode, pose, axis, sign: float,
               far: float) -> tuple[float, float]:
-    """One way of ``_depth_into_base`` measured to every face the mode checks: how far
-    short of ``pose`` the part stops, and the nearest it passes the base far (> 2 mm) from
-    it."""
+    """One way of ``_depth_into_base`` measured to every face the mode checks (``_steps``)."""
+    return _steps(lambda moved: collision.base_distance(part, k, moved, mode), pose, axis,
+                  sign, far)
+
+
+def _steps(distance: Callable[[Pose], float], pose, axis, sign: float,
+           far: float) -> tuple[float, float]:
+    """One way of ``_depth_into_base``, from ``far`` along ``axis`` (``sign``: which way),
+    each step the part's ``distance`` to the base: how far short of ``pose`` the part stops,
+    and the nearest it passes the base far (> 2 mm) from it."""
     s = far
     nearest = math.inf
     for _ in range(_APPROACH_STEPS):
         moved = Pose(tuple(p + sign * s * a for p, a in zip(pose.position, axis)),
                      pose.rotation)
-        d = collision.base_distance(part, k, moved, mode)
+        d = distance(moved)
         if d <= _APPROACH_TOL_M or s <= 0.0:
             break
         if s > _PASSING_FAR_M:
