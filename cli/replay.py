@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import json
 import os
 import shutil
 import signal
@@ -732,6 +733,12 @@ def _verdict(summary, overrides: dict[str, str], *, short: bool = False,
         if changes is not None and not short:
             text += ("\nanalysis: " + "; ".join(changes)) if changes \
                 else "\nanalysis: unchanged"
+    made = getattr(summary, "made_by_what_if", None)
+    if made:
+        # Written by a what-if (-o): a match is of the changed run, not the original's.
+        listed = ", ".join(f"{key}={value if isinstance(value, str) else json.dumps(value)}"
+                           for key, value in sorted(made["overrides"].items()))
+        text = f"a what-if's recording ({listed}; of {made['from']}): {text}"
     restored = getattr(summary, "as_recorded", None)
     if restored is not None:
         listed = ", ".join(f"{name}={value!r}" for name, value in restored.items())

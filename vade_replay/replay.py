@@ -223,6 +223,9 @@ class RunSummary:
     # Where the recording was made otherwise than this run, in what decides round-off
     # (``made_elsewhere``): name -> {"recorded", "here"}; {} where the same or not known.
     made_elsewhere: dict = field(default_factory=dict)
+    # A recording a what-if wrote (``vade-replay --set ... -o``): the recording it changed
+    # and its changes (``made_by_what_if``); None for one ``vade-record`` made.
+    made_by_what_if: dict | None = None
     # Which build ran the frames (native.describe): compiled or the Python sources. Both
     # give the same bits; it says where to look when two machines disagree.
     build: str = field(default_factory=native.describe)
@@ -272,7 +275,7 @@ ANALYSIS_COLUMNS = ("recording", "session", "match", "first_divergence_frame", "
                     "overrides", "truncated", "release_misses", "units", "mass_kg",
                     "as_recorded", "first_event_change_frame", "not_applied",
                     "release_misses_landed", "departure_m", "departure_rad",
-                    "within_tolerance")
+                    "within_tolerance", "made_with_overrides", "made_from")
 
 
 # The run frame by frame as tables (``vade-replay --events``, ``--poses``), for a study's own
@@ -568,6 +571,12 @@ def analysis_rows(recording: str, summary: dict) -> list[dict]:
                # Held to --tolerance: whether within it (empty where none was asked).
                "within_tolerance": "" if summary.get("within_tolerance") is None
                else summary["within_tolerance"],
+               # A recording a what-if wrote (``-o``): its changes and the recording it
+               # changed, so that its rows stand apart from the original run's.
+               "made_with_overrides": "; ".join(
+                   f"{key}={_as_text(value)}" for key, value in sorted(
+                       ((summary.get("made_by_what_if") or {}).get("overrides") or {}).items())),
+               "made_from": (summary.get("made_by_what_if") or {}).get("from", ""),
                # Cut short (a crash while recording): the frames it held, not the session.
                "truncated": bool(summary.get("truncated")),
                # The session's length unit, which a what-if's lengths are in (a study may
@@ -2298,6 +2307,41 @@ def made_elsewhere(recording: Recording) -> dict:
             if name in recorded and recorded[name] != here.get(name)}
 
 
+def made_by_what_if(recording: Recording) -> dict | None:
+    """The what-if a recording was written by (``vade-replay --set ... -o``): ``{"from":
+    the recording it first changed, "overrides": {key: value}}`` (a what-if of a what-if's
+    recording: both runs' changes, the later winning), or None for a recording
+    ``vade-record`` made. Its session already holds the changes, so a replay of it matches
+    like any other; this is what tells its rows apart from the original run's in a study
+    (a researcher's trial: a what-if written with ``-o``, replayed, looked like the
+    original). Metadata that does not read as such (edited by hand) is left out."""
+    block = recording.metadata.get("session") or {}
+    text = block.get("what_if")
+    if text is None:
+        return None
+    try:
+        overrides = json.loads(text)
+    except ValueError:
+        return None
+    if not isinstance(overrides, dict) or not overrides:
+        return None
+    return {"from": str(block.get("what_if_of", block.get("replayed_from", ""))),
+            "overrides": overrides}
+
+
+def _what_if_metadata(recording: Recording, applied: dict) -> dict[str, str]:
+    """What a regenerated recording's metadata says of the run that wrote it: the recording
+    it was replayed from, and, for a what-if (or a recording one wrote, replayed again),
+    its changes and the recording they were first made to (``made_by_what_if``)."""
+    out = {"replayed_from": str(recording.path)}
+    before = made_by_what_if(recording)
+    overrides = {**(before["overrides"] if before else {}), **applied}
+    if overrides:
+        out["what_if"] = json.dumps(overrides, sort_keys=True)
+        out["what_if_of"] = before["from"] if before else str(recording.path)
+    return out
+
+
 def physics_changes(recording: Recording, physics, applied: dict) -> dict:
     """Physics of a replay that differs from what ``recording`` was made with (its
     ``physics`` metadata; a key it lacks is what came before that key), leaving out what
@@ -2423,6 +2467,7 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
                          **_part_figures(scene),
                          physics_changed=physics_changes(recording, scene.physics, applied),
                          made_elsewhere=made_elsewhere(recording),
+                         made_by_what_if=made_by_what_if(recording),
                          warnings=_introduced(session, recording.session) if applied else [],
                          not_applied=absent)
     summary.warnings += [f"--set {key} not applied: {why}" for key, why in absent.items()]
@@ -2446,7 +2491,7 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
         partial, target = partial_output(out)
         # A what-if's recording embeds the changed session, so that it replays itself.
         writer = RecordingWriter(partial, session, scene,
-                                 extra_metadata={"replayed_from": str(recording.path)},
+                                 extra_metadata=_what_if_metadata(recording, applied),
                                  parts_encoding=recording.parts_encoding)
     first_time = None
     unreadable = False  # a recorded frame could not be decoded to measure the departure
