@@ -244,7 +244,7 @@ def _check_part_overrides(recordings: list[str], overrides: dict[str, str]) -> N
     one error before anything is written, as is a field the part cannot take."""
     keys = {k: v for k, v in overrides.items() if k.startswith(("parts.", "tools."))}
     for key, value in keys.items():
-        why = None  # why the first readable session cannot take it
+        whys: dict[str, list[str]] = {}  # why readable sessions cannot take it: their paths
         for path in recordings:
             try:
                 session = Recording(path).session
@@ -254,11 +254,23 @@ def _check_part_overrides(recordings: list[str], overrides: dict[str, str]) -> N
             apply_overrides(session, {key: value}, absent=absent)  # a bad field: raised
             if key not in absent:
                 break
-            why = why or f"{path}: {absent[key]}"
+            whys.setdefault(absent[key], []).append(path)
         else:
-            if why is not None:
+            if whys:
+                # Each distinct reason, which names its sessions' parts (a trial: only the
+                # first recording's was given, so the name meant, in another session, was
+                # not in sight), with the recordings it is of (a study's many of one).
+                said = [f"{paths[0]}" + (f" and {len(paths) - 1} more" if len(paths) > 1
+                                         else "") + f": {why}" for why, paths in whys.items()]
+                listed = "; ".join(said[:_WHYS_LISTED]) + (
+                    f"; {len(said) - _WHYS_LISTED} more reasons" if len(said) > _WHYS_LISTED
+                    else "")
                 raise ConfigError(f"none of the {len(recordings)} recordings' sessions can "
-                                  f"take it ({why})", field=f"--set {key}")
+                                  f"take it ({listed})", field=f"--set {key}")
+
+
+# How many recordings' reasons a --set none of them can take names before "N more".
+_WHYS_LISTED = 4
 
 
 # Where the run's own lines go: standard output, unless a table is written there (``-``).

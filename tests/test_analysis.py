@@ -484,9 +484,16 @@ def test_a_studys_what_if_of_a_part_applies_where_the_session_has_it(tmp_path):
     none = run_cli("vade-replay", sleeve, gear, "--set", "parts.spacer.mass=1",
                    "--csv", str(table))
     assert none.returncode == 2 and not table.exists() and none.stdout == ""
+    # Each session's reason, which names its own parts (only the first one's was given).
     assert none.stderr == ("error: --set parts.spacer.mass: none of the 2 recordings' "
                            f"sessions can take it ({sleeve}: no part 'spacer' in this "
-                           "session (its parts: sleeve))\n")
+                           f"session (its parts: sleeve); {gear}: no part 'spacer' in this "
+                           "session (its parts: gear))\n")
+    # A study's many recordings of one session: a reason once, with how many it is of.
+    tilted = str(RECORDINGS / "gear_tilted_shaft.mcap")
+    many = run_cli("vade-replay", gear, sleeve, tilted, "--set", "parts.spacer.mass=1")
+    assert many.returncode == 2 and f"({gear} and 1 more: no part 'spacer' in this session " \
+        "(its parts: gear); " in many.stderr
     alone = run_cli("vade-replay", gear, "--set", "parts.sleeve.mass=20")
     assert alone.returncode == 2 and "no part 'sleeve' in this session" in alone.stderr
 
