@@ -1778,13 +1778,15 @@ def _meshes_with_units(shape, at: str) -> list[tuple[str, str, str]]:
     return []
 
 
-def mass_warnings(scene: Scene, doc: dict | None) -> list[str]:
+def mass_warnings(scene: Scene, doc: dict | None, *, as_set: bool = False) -> list[str]:
     """What a part's mass says of a slip in its units: a ``mass`` alone (spread evenly)
     making no solid's density; ``mass_properties`` whose mass makes no solid's density in
     its closed mesh, whose inertia is far (100 times) from that shape's at that mass
     spread evenly, or is more than any body of that shape can have (a moment above the
     mass times its farthest vertex from the centre of mass squared), or whose centre of
-    mass lies outside the shape's box. Grams for kilograms, kg mm^2 for kg m^2."""
+    mass lies outside the shape's box. Grams for kilograms, kg mm^2 for kg m^2. Each names
+    the session's field (``parts[2].mass``), or, ``as_set``, the key a what-if's ``--set``
+    gives it by (``parts.spacer.mass``: an engineer's trial read the index as another part)."""
     listed = list((doc or {}).get("parts") or [])
     index = {str(p.get("name")): i for i, p in enumerate(listed)}
     out = []
@@ -1794,7 +1796,8 @@ def mass_warnings(scene: Scene, doc: dict | None) -> list[str]:
         part = listed[i] if i is not None else {}
         if not ("mass" in part or "mass_properties" in part):
             continue
-        where = f"parts[{i}].{'mass' if 'mass' in part else 'mass_properties'}"
+        where = (f"parts.{body.name}" if as_set else f"parts[{i}]") + \
+            f".{'mass' if 'mass' in part else 'mass_properties'}"
         closed = _closed(body.faces)
         volume = _volume(body.vertices, body.faces) if closed else 0.0
         if volume > 0.0 and not lo <= body.mass_kg / volume <= hi:
@@ -2474,8 +2477,10 @@ def replay(recording: Recording, *, overrides: dict[str, str] | None = None,
     if any(key.startswith("parts.") and key.endswith((".mass", ".density"))
            for key in applied):
         # (A mass is weighed against the part's shape: the scene's warning, not the file's.)
-        was = set(mass_warnings(recording.session.build_scene(), recording.session.doc))
-        summary.warnings += [w for w in mass_warnings(scene, session.doc) if w not in was]
+        was = set(mass_warnings(recording.session.build_scene(), recording.session.doc,
+                                as_set=True))
+        summary.warnings += [w for w in mass_warnings(scene, session.doc, as_set=True)
+                             if w not in was]
     writer = None
     partial = target = None
     if out is not None:
