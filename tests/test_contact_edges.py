@@ -122,6 +122,48 @@ def test_a_part_put_down_on_the_base_rides_with_it():
     assert sp.norm(sp.sub(moved, base_moved)) < 1e-12 and base_moved[0] > 0.49
 
 
+@pytest.mark.parametrize("depth_mm", [0.0, 6.0])
+def test_a_part_let_go_overlapping_the_base_is_warned_of_with_how_deep(tmp_path, depth_mm):
+    """An engineer's trial: a part let go overlapping the base (deeper than the move out of
+    a flat face takes it) rides on the base so, and nothing said so. Let go resting on the
+    plate (0.05 mm above it) there is no warning; let go with its bottom 6 mm into the
+    plate's top, the recording warns of it, with the depth: its bottom face 6 mm under the
+    plate's top (closed form; the plate's and block's faces are flat, no tessellation)."""
+    from conftest import make_session
+    from vade_replay.recording import Recording
+    from vade_replay.replay import record, replay
+    top = 0.98005 - depth_mm / 1000.0 - 0.00005 * (depth_mm > 0)
+    doc = _plane_block_wall(**{"tracker/devices/right_hand/2/position/2": top})
+    del doc["parts"][0]["assembly"]
+    out = tmp_path / "let_go.mcap"
+    summary = record(make_session(doc), out)
+    assert summary.transitions_by_edge.get("INHAND->ONBASESTATIC") == 1
+    said = [w for w in summary.warnings if "inside the base part" in w]
+    if depth_mm == 0.0:
+        assert said == []
+        return
+    (warning,) = said
+    assert warning.startswith("frame ") and "block was let go about 6 mm inside the base " \
+        "part (plate_with_wall)" in warning and "released_touching_base" in warning
+    # The depth itself, to the closed form, at the poses after the release frame.
+    import re
+    from vade_replay import replay as rp
+    from vade_replay.collision import CollisionWorld
+    from vade_replay.spatial import Pose
+    frame = int(re.match(r"frame (\d+)", warning).group(1))
+    scene = make_session(doc).build_scene()
+    recorded = Recording(out)
+    (after,) = [rp.recorded_record(f) for f in recorded.frames() if f.inputs.frame == frame]
+    poses = (Pose(after.parts[0].position, after.parts[0].rotation_xyzw),
+             Pose(after.base.position, after.base.rotation_xyzw))
+    depth = rp._depth_inside(CollisionWorld(scene), scene.parts[0], scene.base, base=True,
+                             poses=poses)
+    assert abs(depth - depth_mm / 1000.0) < 1e-6  # (fcl's point probe: ~1e-9)
+    # A replay repeats it (kept in the recording), and matches.
+    again = replay(Recording(out))
+    assert again.match and warning in again.recorded_warnings
+
+
 @pytest.mark.parametrize("where, position", [
     ("beside the plate", [-0.17505, 0.2, 0.95]),   # 0.05 mm from its side face
     ("under the plate", [0.0, 0.2, 0.91995]),      # 0.05 mm below it
