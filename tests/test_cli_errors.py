@@ -929,7 +929,7 @@ def test_an_output_holding_another_recording_is_not_replaced_without_force(tmp_p
     older = run_cli("vade-record", str(tmp_path / "slide.json"), "-o", str(old))
     # The physics keys a default moved in since (a researcher's trial: it named none).
     assert older.returncode == 0 and "(its physics, in block_cut, block_event, " \
-        "coaxial_fit, contact_sweep, final_pose_check, flight_grace, 13 more)" \
+        "coaxial_fit, contact_sweep, environment_contact, final_pose_check, 14 more)" \
         in older.stderr
     forced = run_cli("vade-record", str(throw), "-o", str(out), "--force")
     assert forced.returncode == 0 and Recording(out).session.name == "throw_and_catch"

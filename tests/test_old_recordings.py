@@ -35,6 +35,7 @@ def test_an_old_recording_names_the_changed_defaults_and_replays_with_them():
     assert changed["block_cut"] == {"recorded": "both", "now": "blamed"}
     assert changed["block_event"] == {"recorded": "always", "now": "first"}
     assert changed["flight_grace"] == {"recorded": "whole_base", "now": "touched"}
+    assert changed["environment_contact"] == {"recorded": "flying", "now": "every_part"}
     assert changed["coaxial_fit"] == {"recorded": "faces", "now": "radial"}
     assert changed["landing"] == {"recorded": "rests", "now": "constraints"}
     assert changed["contact_sweep"] == {"recorded": "frame_end", "now": "path"}
@@ -51,12 +52,13 @@ def test_an_old_recording_names_the_changed_defaults_and_replays_with_them():
                             "final_pose_check", "block_cut", "block_event", "flight_grace",
                             "release_velocity", "coaxial_fit", "landing", "contact_sweep",
                             "velocities", "snap_velocity", "two_hand_max_mass_kg",
-                            "release_point", "release_span_s"}
+                            "release_point", "release_span_s", "environment_contact"}
     # analytic brings its own 1/180 s, so the step need not be set.
     again = replay(Recording(OLD), as_recorded=True)
     assert again.match, again.first_divergence
     assert again.as_recorded == {"block_cut": "both", "block_event": "always",
                                  "coaxial_fit": "faces", "contact_sweep": "frame_end",
+                                 "environment_contact": "flying",
                                  "final_pose_check": "frame_end", "flight_grace": "whole_base",
                                  "landing": "rests", "release_point": "cm",
                                  "release_span_s": 0.0, "release_velocity": "window_fit",
@@ -75,7 +77,8 @@ def test_the_cli_says_so_beside_the_divergence(tmp_path):
     assert lines[1].endswith(f"to replay it as it was made: vade-replay {OLD} --as-recorded")
     many = run_cli("vade-replay", str(OLD), str(RECORDINGS / "gear_pendulum.mcap"))
     assert ("(made with other physics defaults: block_cut, block_event, coaxial_fit, "
-            "contact_sweep, final_pose_check, flight_grace, landing, release_point, "
+            "contact_sweep, environment_contact, final_pose_check, flight_grace, landing, "
+            "release_point, "
             "release_span_s, release_velocity, "
             "slide_integrator, slide_off, "
             "slide_onset, slide_step_s, snap_velocity, two_hand_max_mass_kg, velocities; "
@@ -84,7 +87,7 @@ def test_the_cli_says_so_beside_the_divergence(tmp_path):
     as_made = run_cli("vade-replay", str(OLD), "--as-recorded")
     assert as_made.returncode == 0 and as_made.stdout.startswith(
         "as recorded (block_cut='both', block_event='always', coaxial_fit='faces', "
-        "contact_sweep='frame_end', "
+        "contact_sweep='frame_end', environment_contact='flying', "
         "final_pose_check='frame_end', flight_grace='whole_base', landing='rests', "
         "release_point='cm', release_span_s=0.0, release_velocity='window_fit', "
         "slide_integrator='analytic', slide_off='frame_end', slide_onset='sub_step', "
@@ -186,7 +189,8 @@ def test_vade_goldens_check_says_a_default_changed_since_a_golden_was_recorded(t
     assert result.returncode == 1
     assert "DIVERGED first divergence at frame" in result.stdout
     assert ("recorded with other physics defaults: block_cut, block_event, coaxial_fit, "
-            "contact_sweep, final_pose_check, flight_grace, landing, release_point, "
+            "contact_sweep, environment_contact, final_pose_check, flight_grace, landing, "
+            "release_point, "
             "release_span_s, release_velocity, "
             "slide_integrator, slide_off, "
             "slide_onset, slide_step_s, snap_velocity, two_hand_max_mass_kg, velocities; "

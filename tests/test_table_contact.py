@@ -69,3 +69,113 @@ def test_no_queries_for_a_part_far_from_everything():
     assert np.allclose(records[-1].parts[0].position, (0.0, 0.0, 3.0), rtol=0.0, atol=1e-12)
     assert all(max(map(abs, r.parts[0].linear_velocity)) < 1e-12 for r in records
                if r.parts[0].mode == "INSPACE")
+
+
+# A block let go onto a 0.3 m plate held 0.1 m under the left hand, which then lowers it
+# at 0.2 m/s from z 1.0 (t 1.4 s) to 0.8 (t 2.4 s): the plate's top at hand - 0.09 meets
+# the table's top (0.74) at hand 0.83, t 2.25 s (a physics trial's session).
+_HAND_FROM_BASE_Z, _PLATE_HALF, _TOP = -0.1, 0.01, 0.74
+
+
+def _lowered_plate(*, into_table: bool = True, physics: dict | None = None) -> dict:
+    doc = session_doc(
+        parts=[{"name": "block", "shape": {"type": "box", "size": [0.05, 0.05, 0.04]},
+                "density": 2700, "pose": {"position": [0.3, -0.4, 0.76]},
+                "assembly": {"constraints": [{
+                    "type": "plane", "name": "bottom_on_top",
+                    "part": {"point": [0, 0, -0.02], "normal": [0, 0, -1]},
+                    "base": {"point": [0, 0, 0.01], "normal": [0, 0, 1]},
+                    "friction": {"static": 0.4, "dynamic": 0.3}}]}}],
+        environment=[table(size=(2.0, 2.0, 0.04), z=0.72)], rate_hz=60, duration_s=3.0,
+        right_hand=[{"t": 0.0, "position": [0.3, -0.4, 0.76], "grip": False},
+                    {"t": 0.2, "grip": True}, {"t": 0.8, "position": [0.0, 0.0, 0.932]},
+                    {"t": 1.0, "grip": False}, {"t": 1.2, "position": [0.3, 0.3, 1.3]}])
+    doc["base"] = {"name": "plate", "shape": {"type": "box", "size": [0.3, 0.3, 0.02]},
+                   "hand_from_base": {"position": [0, 0, _HAND_FROM_BASE_Z]}}
+    low = 0.8 if into_table else 0.9
+    doc["tracker"]["devices"]["left_hand"] = [
+        {"t": 0.0, "position": [0, 0, 1.0], "grip": True}, {"t": 1.4, "position": [0, 0, 1.0]},
+        {"t": 1.4 + (1.0 - low) / 0.2, "position": [0, 0, low]}]
+    if physics:
+        doc["physics"] = physics
+    return doc
+
+
+def _hand_z_at(gap: float) -> float:
+    """Where the hand is when the block's bottom (on the plate's top) is ``gap`` above the
+    table's top."""
+    return _TOP + gap - _HAND_FROM_BASE_Z - _PLATE_HALF
+
+
+def test_a_part_on_the_base_is_stopped_by_the_table_the_base_is_lowered_into():
+    """A physics trial: a block on a plate lowered into the table rode 3 cm into it, slid
+    off inside it and fell through it (parts on the base met nothing of the environment).
+    It stops (STATIC, hit_environment) as its bottom comes within the contact tolerance of
+    the table's top, at the instant the closed form gives (between the tolerance and half
+    of it: the advancement's step, as a flying part's), and stays there as the plate goes
+    on down through the table; the replay is the recording."""
+    from vade_replay.recording import Recording
+    from vade_replay.replay import record, replay
+    doc = _lowered_plate()
+    records = run_records(doc)
+    tol = 1e-4
+    (contact,) = [e for r in records for e in r.events if e.kind == "ContactMade"]
+    assert (contact.part, contact.cause, contact.other) == ("block", "hit_environment", "table")
+    t_far = 1.4 + (1.0 - _hand_z_at(tol)) / 0.2          # its gap the tolerance
+    t_near = 1.4 + (1.0 - _hand_z_at(0.5 * tol)) / 0.2   # half of it
+    assert t_far - 1e-9 <= contact.time_ns / 1e9 <= t_near + 1e-9
+    changed = [(r.frame, e) for r in records for e in r.events if e.kind == "ModeChanged"]
+    assert (changed[-1][1].from_mode, changed[-1][1].to_mode, changed[-1][1].cause) == (
+        "ONBASESTATIC", "STATIC", "hit_environment")
+    final = records[-1].parts[0]
+    assert final.mode == "STATIC"
+    assert 0.5 * tol - 1e-9 <= final.position[2] - 0.02 - _TOP <= tol + 1e-9
+    assert records[-1].base.position[2] - _TOP < -0.02  # the plate went on into the table
+    assert all(r.parts[0].position[2] - 0.02 >= _TOP - 1e-12 for r in records)  # it did not
+
+
+def test_the_table_stops_nothing_on_a_base_kept_above_it_and_flying_keeps_the_old_rule(
+        tmp_path):
+    """Kept 0.1 m higher, the block rides the plate all the way (no contact, and only
+    bounding tests: no fcl query for it while its box stays clear of the table's); with
+    ``environment_contact: flying``, as recordings were made before the key, the block
+    rides into the table. Both replay as recorded."""
+    from vade_replay.recording import Recording
+    from vade_replay.replay import record, replay
+    above = record(make_session(_lowered_plate(into_table=False)), tmp_path / "above.mcap")
+    assert "ONBASESTATIC->STATIC" not in above.transitions_by_edge
+    assert above.counters.get("fcl_distance_queries", 0) == 0
+    assert replay(Recording(tmp_path / "above.mcap")).match
+    old = _lowered_plate(physics={"environment_contact": "flying"})
+    records = run_records(old)
+    assert records[-1].parts[0].mode == "ONBASESTATIC"
+    assert records[-1].parts[0].position[2] - 0.02 < _TOP - 0.02  # 2 cm into the table
+    record(make_session(old), tmp_path / "old.mcap")
+    assert replay(Recording(tmp_path / "old.mcap")).match
+
+
+@pytest.mark.parametrize("contact", ["every_part", "flying"])
+def test_a_part_let_go_wholly_inside_the_table_is_let_go_on_it(tmp_path, contact):
+    """A hand pushes a 1 cm cube into the 4 cm table (no haptic stop in VR) and opens: it
+    is let go on the table where it is (STATIC, released_touching_environment) and
+    vade-record warns of it. It was let go into free flight, fcl's distance between the
+    nested meshes being the gap to the table's underside, and fell out of it
+    (``environment_contact: flying``, as before)."""
+    from vade_replay.replay import record
+    doc = session_doc(
+        parts=[{"name": "cube", "shape": {"type": "box", "size": [0.01, 0.01, 0.01]},
+                "density": 2700, "pose": {"position": [0.0, 0.0, 0.745]}}],
+        environment=[table(size=(1.2, 0.8, 0.04), z=0.72)], rate_hz=60, duration_s=1.5,
+        right_hand=[{"t": 0.0, "position": [0.0, 0.0, 0.745], "grip": False},
+                    {"t": 0.3, "grip": True}, {"t": 0.8, "position": [0.0, 0.0, 0.72]},
+                    {"t": 1.0, "grip": False}],
+        physics={"environment_contact": contact})
+    summary = record(make_session(doc), tmp_path / "inside.mcap")
+    inside = [w for w in summary.warnings if "wholly inside table" in w]
+    if contact == "flying":
+        assert "INHAND->INSPACE" in summary.transitions_by_edge and not inside
+        return
+    assert summary.transitions_by_edge.get("INHAND->STATIC") == 1
+    assert "INHAND->INSPACE" not in summary.transitions_by_edge
+    (warning,) = inside
+    assert warning.startswith("frame 60 (t = 1.000 s): cube was let go wholly inside table")

@@ -317,7 +317,8 @@ def test_a_recording_made_with_other_principal_axes_is_the_same_session_to_round
     cm, the default before 2026-12-07)."""
     other = Recording(Path(__file__).resolve().parent / "data" / "throw_and_catch_other_axes.mcap")
     summary = replay(other, tolerance=Tolerance(1e-9, 1e-9), as_recorded=True)
-    assert summary.as_recorded == {"release_point": "cm", "release_span_s": 0.0}
+    assert summary.as_recorded == {"environment_contact": "flying", "release_point": "cm",
+                                   "release_span_s": 0.0}
     assert not summary.match and summary.first_divergence["frame"] == 61
     assert summary.within_tolerance is True
     far = summary.largest_departure["cylinder"]

@@ -41,3 +41,25 @@ def posed_points(points, pose: sp.Pose) -> np.ndarray:
     return np.column_stack([r00 * x + r01 * y + r02 * z + pose.position[0],
                             r10 * x + r11 * y + r12 * z + pose.position[1],
                             r20 * x + r21 * y + r22 * z + pose.position[2]])
+
+
+def winding(vertices: np.ndarray, faces: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """The winding number of a closed mesh about each point: 1 inside, 0 outside (the solid
+    angles of its triangles summed, Van Oosterom and Strackee's formula)."""
+    out = np.zeros(len(points))
+    tri = vertices[faces]
+    for k in range(0, len(points), 64):  # (64 points x the triangles at a time)
+        p = points[k:k + 64, None, :]
+        a, b, c = tri[None, :, 0] - p, tri[None, :, 1] - p, tri[None, :, 2] - p
+        la, lb, lc = norms(a), norms(b), norms(c)
+        det = dots(a, np.cross(b, c))
+        div = la * lb * lc + dots(a, b) * lc + dots(a, c) * lb + dots(b, c) * la
+        out[k:k + 64] = np.arctan2(det, div).sum(axis=1) / (2.0 * np.pi)
+    return out
+
+
+def closed(faces: np.ndarray) -> bool:
+    """Every edge of the mesh shared by exactly two of its triangles."""
+    edges = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    return bool(len(counts)) and bool(np.all(counts == 2))

@@ -33,7 +33,7 @@ import numpy as np
 
 from . import spatial as sp
 from . import support
-from .arrays import dots, norms, posed_points
+from .arrays import closed, dots, norms, posed_points, winding
 from .constraints import Mate, radial_extent
 from .scene import Body, Scene
 
@@ -300,6 +300,8 @@ class _Fixed:
     obj: fcl.CollisionObject
     lo: sp.Vec3
     hi: sp.Vec3
+    body: Body
+    closed: bool  # a solid (every edge two triangles'): it has an inside to be in
 
 
 class CollisionWorld:
@@ -316,7 +318,8 @@ class CollisionWorld:
             world = np.array([pose.apply(tuple(v)) for v in body.vertices])
             obj = fcl.CollisionObject(_bvh(body), _transform(pose))
             self._fixed.append(_Fixed(body.name, obj, tuple(world.min(axis=0)),
-                                      tuple(world.max(axis=0))))
+                                      tuple(world.max(axis=0)), body,
+                                      closed(np.asarray(body.faces))))
         # The base's BVH and each constraint's (``_mate``) are built the first time they are
         # asked for too: a constraint no part comes near in a session costs nothing, nor
         # does the base of a session whose parts never meet it. (The same models as built
@@ -1098,6 +1101,53 @@ class CollisionWorld:
             if gap <= radius * radius:
                 near.append(index)
         return tuple(near)
+
+    def environment_near_box(self, lo: sp.Vec3, hi: sp.Vec3) -> tuple[int, ...]:
+        """Indices of environment objects whose world box meets the box ``lo``-``hi``."""
+        self.stats["bounding_tests"] += 1
+        near = []
+        for index, fixed in enumerate(self._fixed):
+            if all(lo[k] <= fixed.hi[k] and fixed.lo[k] <= hi[k] for k in range(3)):
+                near.append(index)
+        return tuple(near)
+
+    def inside_environment(self, part: str, pose: sp.Pose,
+                           candidates: tuple[int, ...]) -> int:
+        """The first of ``candidates`` whose closed mesh the posed part lies wholly inside,
+        or -1. fcl's distance between two meshes is the gap between their surfaces, so a
+        part wholly inside the table is at a distance from it, not touching it (a trial: a
+        part let go inside the table fell through it). Asked where the part is clear of the
+        candidates' surfaces (wholly inside or wholly outside each): one vertex of it says
+        which (``arrays.winding``)."""
+        body = self._bodies[part]
+        first = body.vertices[0]
+        point = pose.apply((float(first[0]), float(first[1]), float(first[2])))
+        for index in candidates:
+            fixed = self._fixed[index]
+            if not fixed.closed or not all(fixed.lo[k] < point[k] < fixed.hi[k]
+                                           for k in range(3)):
+                continue
+            other = fixed.body
+            local = other.initial_pose.inverse().apply(point)
+            if winding(other.vertices, other.faces, np.array([local]))[0] > 0.5:
+                return index
+        return -1
+
+    def environment_normal(self, part: str, pose: sp.Pose, index: int) -> sp.Vec3 | None:
+        """The unit direction from environment object ``index``'s nearest point to the
+        posed part's (world axes: the normal of the face it touches, or the direction from
+        an edge), or None where the two overlap (no nearest points)."""
+        self.stats["fcl_distance_queries"] += 1
+        result = fcl.DistanceResult()
+        d = fcl.distance(fcl.CollisionObject(self._model(part), _transform(pose)),
+                         self._fixed[index].obj, fcl.DistanceRequest(enable_nearest_points=True),
+                         result)
+        if not d > 0.0:
+            return None
+        a, b = result.nearest_points
+        gap = (float(a[0]) - float(b[0]), float(a[1]) - float(b[1]), float(a[2]) - float(b[2]))
+        length = sp.norm(gap)
+        return sp.scale(gap, 1.0 / length) if length > 0.0 else None
 
     def environment_name(self, index: int) -> str:
         return self._fixed[index].name

@@ -80,6 +80,8 @@ _allow([Mode.INSPACE], Mode.ONBASESLIDE, Cause.LANDED_ON_CONSTRAINT)
 _allow([Mode.INSPACE], Mode.ONBASESTATIC, Cause.LANDED_ON_CONSTRAINT)
 _allow([Mode.INSPACE], Mode.PLACED, Cause.LANDED_AT_FINAL_POSE)
 _allow([Mode.INSPACE], Mode.STATIC, Cause.HIT_ENVIRONMENT, Cause.NUMERICAL_FAULT)
+# A part on the base that the base carries onto the table (``physics.environment_contact``).
+_allow(_ONBASE, Mode.STATIC, Cause.HIT_ENVIRONMENT)
 _allow([Mode.ONBASESLIDE], Mode.ONBASESTATIC, Cause.BLOCKED, Cause.FRICTION_HELD,
        Cause.NUMERICAL_FAULT)
 _allow([Mode.ONBASESTATIC], Mode.ONBASESLIDE, Cause.FRICTION_BROKEN)

@@ -32,7 +32,7 @@ from . import codec, native
 from . import constraints as cn
 from . import spatial as sp
 from .analysis import SessionAnalysis, compare
-from .arrays import dots, norms, posed_points
+from .arrays import closed as _closed, dots, norms, posed_points, winding
 from .collision import SKIP_COAXIAL, SKIP_COPLANAR, CollisionWorld
 from .dynamics import onbase
 from .errors import (ConfigError, RecordingError, SessionError, Terminated, VadeError,
@@ -1278,6 +1278,8 @@ def record(session: Session, out: str | Path, *,
                         _opened(summary.release_misses, open_misses, record_)
                         summary.warnings += release_overlaps(scene, collision, record_,
                                                              first_time)
+                        summary.warnings += stopped_on_a_wall(scene, collision, record_,
+                                                              first_time)
                     if on_frame:
                         on_frame(record_)
                     interrupts.check()
@@ -1328,13 +1330,14 @@ def release_overlaps(scene: Scene, collision: CollisionWorld, record: FrameRecor
     not snap, not that the two overlap). Parts let go a few tenths of a millimetre into a
     flat face are moved out of it first (``step._out_of_flat_overlap``) and are not warned
     of. The depth as at the start (``_depth_inside``: points of each surface the other
-    winds about); its fcl queries are not the run's (its counters stay a replay's)."""
+    winds about); its fcl queries are not the run's (its counters stay a replay's). Parts
+    let go wholly inside the table or another environment object (a hand pushed them in)
+    are left there, STATIC, and warned of too."""
     out: list[str] = []
-    if scene.base is None or record.base is None:
-        return out
-    base_pose = Pose(record.base.position, record.base.rotation_xyzw)
+    t = (record.time_ns - first_time_ns) / 1e9
     for event in record.events:
-        if event.kind != "PartReleased" or event.cause != Cause.RELEASED_ON_BASE_PART.value:
+        if event.kind != "PartReleased" or event.cause not in (
+                Cause.RELEASED_ON_BASE_PART.value, Cause.RELEASED_ON_TABLE.value):
             continue
         body = next((b for b in scene.parts if b.name == event.part), None)
         snap = next((p for p in record.parts if p.name == event.part), None)
@@ -1342,17 +1345,71 @@ def release_overlaps(scene: Scene, collision: CollisionWorld, record: FrameRecor
             continue
         pose = Pose(snap.position, snap.rotation_xyzw)
         counters = dict(collision.stats)
+        if event.cause == Cause.RELEASED_ON_TABLE.value:
+            # Let go wholly inside the table (or another object): left there, STATIC.
+            near = collision.environment_near(pose.apply(body.center_of_mass),
+                                              body.radius_about_cm)
+            inside = collision.inside_environment(body.name, pose, near) if near else -1
+            collision.stats.update(counters)
+            if inside >= 0:
+                out.append(f"frame {record.frame} (t = {t:.3f} s): {body.name} was let go "
+                           f"wholly inside {collision.environment_name(inside)}; it stays "
+                           "there, STATIC (released_touching_environment), until a hand "
+                           "moves it")
+            continue
+        if scene.base is None or record.base is None:
+            continue
+        base_pose = Pose(record.base.position, record.base.rotation_xyzw)
         depth = max(_depth_inside(collision, body, scene.base, base=True,
                                   poses=(pose, base_pose)),
                     _depth_inside(collision, scene.base, body, poses=(base_pose, pose)))
         collision.stats.update(counters)
         if depth > _INSIDE_BASE_M:
-            t = (record.time_ns - first_time_ns) / 1e9
             out.append(f"frame {record.frame} (t = {t:.3f} s): {body.name} was let go about "
                        f"{depth * 1e3:.2g} mm inside the base part ({scene.base.name}); it "
                        "rides on the base so, the two overlapping (released_touching_base), "
                        "until a hand moves it")
     return out
+
+
+def stopped_on_a_wall(scene: Scene, collision: CollisionWorld, record: FrameRecord,
+                      first_time_ns: int) -> list[str]:
+    """Parts the table (or another environment object) stopped on a face that cannot hold
+    them up: steeper than 84 degrees or facing down (the base's rule for what holds a
+    part). The paper's rule stops a part at the table wherever it touches it, STATIC, so a
+    part thrown at the table's side hangs on it (a physics trial: a cube stuck to the
+    side of the table, a "drop" no study would count as one); said, not changed."""
+    out: list[str] = []
+    g = scene.physics.gravity
+    norm = math.sqrt(sp.dot(g, g))
+    if norm == 0.0:
+        return out
+    up = sp.scale(g, -1.0 / norm)
+    t = (record.time_ns - first_time_ns) / 1e9
+    for event in record.events:
+        if event.kind != "ContactMade" or event.cause != Cause.HIT_ENVIRONMENT.value:
+            continue
+        snap = next((p for p in record.parts if p.name == event.part), None)
+        index = next((i for i, b in enumerate(scene.environment) if b.name == event.other),
+                     None)
+        if snap is None or index is None or snap.mode != Mode.STATIC.value:
+            continue
+        counters = dict(collision.stats)
+        normal = collision.environment_normal(
+            event.part, Pose(snap.position, snap.rotation_xyzw), index)
+        collision.stats.update(counters)
+        if normal is not None and sp.dot(normal, up) <= _WALL_COS:
+            steep = math.degrees(math.acos(max(-1.0, min(1.0, sp.dot(normal, up)))))
+            out.append(f"frame {record.frame} (t = {t:.3f} s): {event.part} stopped on "
+                       f"{event.other} at a face {steep:.0f} degrees from level, which cannot "
+                       "hold it up: a flying part stops wherever it touches the table (the "
+                       "paper's rule), so it stays there, STATIC, until a hand moves it")
+    return out
+
+
+# A face whose normal is no nearer up than this (84 degrees) cannot hold a part up
+# (``step._MIN_SUPPORT_COS``, the base's rule).
+_WALL_COS = 0.1
 
 
 def fallen_past_everything(scene: Scene, last: FrameRecord, first_time_ns: int) -> list[str]:
@@ -1870,13 +1927,6 @@ def mass_warnings(scene: Scene, doc: dict | None, *, as_set: bool = False) -> li
     return out
 
 
-def _closed(faces: np.ndarray) -> bool:
-    """Every edge of the mesh shared by exactly two of its triangles."""
-    edges = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
-    _, counts = np.unique(edges, axis=0, return_counts=True)
-    return bool(len(counts)) and bool(np.all(counts == 2))
-
-
 def _volume(vertices, faces) -> float:
     """The volume a closed mesh encloses (m^3): its signed tetrahedra from the origin."""
     v = vertices[faces]
@@ -1895,21 +1945,6 @@ def _overlapping_pairs(boxes: list[tuple[list[float], list[float]]]) -> list[tup
             if _overlap(boxes[a], boxes[b]) > _INSIDE_BASE_M:
                 out.append((min(a, b), max(a, b)))
     return sorted(out)
-
-
-def _winding(vertices: np.ndarray, faces: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """The winding number of a closed mesh about each point: 1 inside, 0 outside (the solid
-    angles of its triangles summed, Van Oosterom and Strackee's formula)."""
-    out = np.zeros(len(points))
-    tri = vertices[faces]
-    for k in range(0, len(points), 64):  # (64 points x the triangles at a time)
-        p = points[k:k + 64, None, :]
-        a, b, c = tri[None, :, 0] - p, tri[None, :, 1] - p, tri[None, :, 2] - p
-        la, lb, lc = norms(a), norms(b), norms(c)
-        det = dots(a, np.cross(b, c))
-        div = la * lb * lc + dots(a, b) * lc + dots(a, c) * lb + dots(b, c) * la
-        out[k:k + 64] = np.arctan2(det, div).sum(axis=1) / (2.0 * np.pi)
-    return out
 
 
 # The most points of a part held to another's solid (``_depth_inside``), and about how
@@ -1965,7 +2000,7 @@ def _depth_inside(collision: CollisionWorld, body, other, *, base: bool = False,
         # Fine meshes: an even sample, so the winding costs at most this many points times
         # the other's triangles (2,000 vertices against 20k triangles took 8 s).
         points = points[np.linspace(0, len(points) - 1, _INSIDE_POINTS).astype(int)]
-    inside = points[_winding(other.vertices, other.faces, points) > 0.5]
+    inside = points[winding(other.vertices, other.faces, points) > 0.5]
     if len(inside) > 64:  # each measured by an fcl query: an even sample of them
         inside = inside[np.linspace(0, len(inside) - 1, 64).astype(int)]
     return max((collision.point_distance(other.name, tuple(map(float, q)), base=base)
@@ -2318,7 +2353,8 @@ _BEFORE_THE_KEY = {"slide_onset": "sub_step", "slide_off": "frame_end",
                    "block_event": "always", "flight_grace": "whole_base",
                    "coaxial_fit": "faces", "landing": "rests",
                    "contact_sweep": "frame_end", "velocities": "relative",
-                   "snap_velocity": "zero", "release_point": "cm", "release_span_s": 0.0}
+                   "snap_velocity": "zero", "release_point": "cm", "release_span_s": 0.0,
+                   "environment_contact": "flying"}
 
 
 def _step_in_effect(recorded: dict, bound: str, before: float):

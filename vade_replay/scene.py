@@ -72,6 +72,7 @@ FINAL_POSE_CHECKS = ("path", "frame_end")
 BLOCK_CUTS = ("blamed", "both")
 BLOCK_EVENTS = ("first", "always")
 FLIGHT_GRACES = ("touched", "whole_base")
+ENVIRONMENT_CONTACTS = ("every_part", "flying")
 PASSING_CONTACTS = ("pass", "block")
 COAXIAL_FITS = ("radial", "faces")
 LANDINGS = ("constraints", "rests")
@@ -143,6 +144,15 @@ class Physics:
     # base until then, as before 2026-11-23 (a block let go against a wall fell along it
     # through the plate below).
     flight_grace: str = "touched"
+    # every_part: a part on the base part (resting or moving on it) that the base, or its
+    # own move, brings within the contact tolerance of the table or another environment
+    # object is stopped there (STATIC, hit_environment), as a flying part is; the base
+    # part, which follows the hand, goes on through; and a part let go wholly inside one
+    # (pushed in by a hand) is let go on it, where it is. flying: only flying parts meet
+    # the environment, from outside, as before this key (a physics trial: a block on a
+    # plate lowered into the table rode into it, slid off inside it and fell through it;
+    # a part let go inside the table fell out of its underside).
+    environment_contact: str = "every_part"
     # block: a part moving on the base that comes within the contact tolerance of it is
     # blocked there, even where it would only pass it (a key between guides; with
     # coaxial_fit faces, a pin with less radial clearance than the tolerance at its bore's
@@ -201,6 +211,7 @@ class Physics:
             ("block_cut", self.block_cut, BLOCK_CUTS),
             ("block_event", self.block_event, BLOCK_EVENTS),
             ("flight_grace", self.flight_grace, FLIGHT_GRACES),
+            ("environment_contact", self.environment_contact, ENVIRONMENT_CONTACTS),
             ("passing_contact", self.passing_contact, PASSING_CONTACTS),
             ("coaxial_fit", self.coaxial_fit, COAXIAL_FITS),
             ("landing", self.landing, LANDINGS),

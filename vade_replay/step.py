@@ -155,6 +155,7 @@ def step(scene: Scene, collision: CollisionWorld, state: WorldState,
     _check_resting_on_base(f)
     _move_on_base(f)
     _carry_with_base(f)
+    _meet_environment(f, state.parts)
     _releases(f, state)
     _grabs(f, state)
     parts = tuple(f.parts)
@@ -601,7 +602,11 @@ def _release(f: _Frame, index: int, hand: str) -> None:
     near = f.collision.environment_near(cm, body.radius_about_cm + physics.contact_tolerance)
     if near:
         d, which = f.collision.distance_to_environment(part.name, part.pose, near)
-        if d <= physics.contact_tolerance:
+        # Let go wholly inside the table (a hand pushed it in: there is no haptic stop) is
+        # let go on it, where it is; it flew inside it and fell out of its underside.
+        if d <= physics.contact_tolerance or (
+                physics.environment_contact == "every_part"
+                and f.collision.inside_environment(part.name, part.pose, near) >= 0):
             f.events.append(PartReleased(frame, part.name, Cause.RELEASED_ON_TABLE.value, hand,
                                          v, w))
             f.change_mode(index, PartState(part.name, STATIC, part.pose),
@@ -1545,6 +1550,103 @@ def _carry_with_base(f: _Frame) -> None:
             if final is not None:
                 f.parts[index] = part.moved(f.base_pose.compose(final), part.linear_velocity,
                                             part.angular_velocity, part.motion)
+
+
+def _meet_environment(f: _Frame, before: tuple[PartState, ...]) -> None:
+    """Parts on the base part (resting or moving on it) that the base, or their own move,
+    brought within the contact tolerance of the table or another environment object this
+    frame: stopped there (STATIC, ``hit_environment``) at the first such instant, as a
+    flying part is (``physics.environment_contact``). The base part follows the hand and
+    goes on through; the parts on it do not (a physics trial: a block on a plate lowered
+    into the table rode 3 cm into it, slid off inside it and fell through it, there being
+    no contact from inside a mesh).
+
+    The frame's path of a part: the base's (linear, slerp) carrying the part's pose on it,
+    itself linear and slerp from the frame's start to its end (a slide's curve within one
+    frame is left out: the instant is the path's). Conservative advancement on it: no
+    point of the part moves further than ``reach`` over the whole frame, so a step of
+    (d - tol/2) / reach of the frame passes through nothing. A part that did not move
+    (resting on a base at rest) is not asked; one whose box stays clear of every object's
+    is asked nothing more (a bounding test)."""
+    physics = f.scene.physics
+    if physics.environment_contact != "every_part" or f.base_pose is None \
+            or not f.scene.environment:
+        return
+    base1 = f.base_pose
+    base0 = f.base_prev if f.base_prev is not None else base1
+    tol = physics.contact_tolerance
+    d_origin = sp.norm(sp.sub(base1.position, base0.position))
+    phi_base = sp.quat_angle_between(base0.rotation, base1.rotation)
+    for index in f.awake:
+        part = f.parts[index]
+        if part.mode is not ONBASESTATIC and part.mode is not ONBASESLIDE:
+            continue
+        old = before[index]
+        # From the frame's start where it was on the base then; else (let go onto it, or
+        # landed on it, this frame) from where it is at the frame's end.
+        on_before = old.mode is ONBASESTATIC or old.mode is ONBASESLIDE
+        p0 = old.pose if on_before else part.pose
+        if on_before and p0 == part.pose and d_origin == 0.0 and phi_base == 0.0:
+            continue  # nothing moved: nothing new to meet
+        body = f.scene.parts[index]
+        # How far any point of the part goes over the frame's path (below), with no pose
+        # made: its pose on the base moves by at most the world move and the base's.
+        r = body.reach_from_origin
+        arm0 = sp.norm(sp.sub(p0.position, base0.position))
+        arm1 = sp.norm(sp.sub(part.pose.position, base1.position))
+        slide = sp.norm(sp.sub(part.pose.position, p0.position)) + d_origin + phi_base * arm0
+        phi_rel = sp.quat_angle_between(p0.rotation, part.pose.rotation) + phi_base
+        reach = d_origin + phi_base * (max(arm0, arm1) + r) + slide + phi_rel * r
+        # Its box at the frame's end, widened by that: clear of every object's box, done.
+        lo, hi = _world_box(body, part.pose)
+        near = f.collision.environment_near_box(sp.sub(lo, (reach + tol,) * 3),
+                                                sp.add(hi, (reach + tol,) * 3))
+        if not near:
+            continue
+        rel1 = base1.inverse().compose(part.pose)
+        rel0 = base0.inverse().compose(p0)
+
+        def at(lam: float) -> sp.Pose:
+            if lam >= 1.0:
+                return part.pose
+            base = sp.Pose(sp.add(base0.position, sp.scale(
+                sp.sub(base1.position, base0.position), lam)),
+                sp.slerp(base0.rotation, base1.rotation, lam))
+            rel = sp.Pose(sp.add(rel0.position, sp.scale(
+                sp.sub(rel1.position, rel0.position), lam)),
+                sp.slerp(rel0.rotation, rel1.rotation, lam))
+            return base.compose(rel)
+        lam = 0.0 if on_before else 1.0
+        hit = -1
+        for _ in range(_CA_MAX_ITERATIONS):
+            pose = at(lam)
+            d, which = f.collision.distance_to_environment(part.name, pose, near)
+            if d <= tol:
+                hit = which
+                break
+            if lam >= 1.0 or reach <= 0.0:
+                break
+            lam = min(1.0, lam + max((d - 0.5 * tol) / reach, 1e-9))
+        if hit < 0:
+            continue
+        t_c = f.t_prev_ns + int(lam * (f.t_ns - f.t_prev_ns)) if lam < 1.0 else f.t_ns
+        f.events.append(ContactMade(f.inputs.frame, part.name, Cause.HIT_ENVIRONMENT.value,
+                                    f.collision.environment_name(hit), t_c))
+        f.change_mode(index, PartState(part.name, STATIC, pose), Cause.HIT_ENVIRONMENT)
+
+
+def _world_box(body: Body, pose: sp.Pose) -> tuple[sp.Vec3, sp.Vec3]:
+    """The world box of the part's own box, posed."""
+    lo, hi = body.bbox_min, body.bbox_max
+    xs, ys, zs = [], [], []
+    for x in (lo[0], hi[0]):
+        for y in (lo[1], hi[1]):
+            for z in (lo[2], hi[2]):
+                c = pose.apply((x, y, z))
+                xs.append(c[0])
+                ys.append(c[1])
+                zs.append(c[2])
+    return (min(xs), min(ys), min(zs)), (max(xs), max(ys), max(zs))
 
 
 def _move_on_base(f: _Frame) -> None:

@@ -85,7 +85,7 @@ class SceneInfo:
     parts: tuple[MeshInfo, ...]  # names match PartSnapshot.name
     base: MeshInfo | None  # pose per frame is FrameRecord.base
     environment: tuple[tuple[MeshInfo, tuple, tuple], ...] = ()  # (mesh, position, rotation_xyzw)
-    gravity: tuple = (0.0, 0.0, -9.81)  # world gravity, m/s^2, unscaled
+    gravity: tuple = (0.0, 0.0, -9.8)  # world gravity, m/s^2, unscaled (the physics default)
     # The gravity a part moves under in a mode where it is scaled (``physics``'s
     # ``gravity_scale_free`` in INSPACE, ``gravity_scale_slide`` in ONBASESLIDE), so that
     # the energy plot's total is conserved where the physics conserves it (a researcher's
