@@ -406,3 +406,31 @@ def test_a_counterbore_met_from_below_only_near_the_pose_is_not_passed(counterbo
         # Only the way up got there, passing nothing within twice the tolerance (no turned
         # approaches ran).
         assert len(passed) == 1 and passed[0] >= 2e-4
+
+
+def test_a_guide_ring_just_below_the_final_pose_is_not_approached_again():
+    """The guide ring's peg placed 1 mm above the ring (a 5 mm bore 2 mm deep on the plate;
+    the peg 0.2 mm inside its radius, ``coaxial_fit: faces``, contact tolerance 0.25 mm):
+    the way down never brings the peg beside the ring, and more than 2 mm from the pose
+    it is 3 mm above it, so the bound on what the way passes, its radial and axial gaps
+    together (3 mm), is over twice the tolerance and nothing is asked of fcl for it. With
+    the radial gap alone (0.2 mm) the ring would be asked where no part face comes beside
+    it and the way approached again, every step to the whole check (the cost a 100k-face
+    mesh pays in minutes); the warnings are the reference's either way."""
+    import trimesh
+    files = {
+        "ring.stl": trimesh.creation.annulus(r_min=5, r_max=12, height=2,
+                                             sections=160).export(file_type="stl"),
+        "peg.stl": trimesh.creation.cylinder(radius=4.8, height=8,
+                                             sections=320).export(file_type="stl")}
+    session = _bracket(files, "peg_over_ring",
+                       {"gravity": [0, 0, -9810], "coaxial_fit": "faces",
+                        "contact_tolerance": 0.25},
+                       [{"type": "mesh", "file": "ring.stl", "pose": {"position": [30, 0, 6]}}],
+                       "peg", [30, 0, 15], [30, 0, 12])
+    (warnings, passed, asked), fallbacks = _warnings_and_fallbacks(session)
+    reference, reference_passed, reference_asked = _warnings(session, _reference_depth)
+    assert warnings == reference
+    assert not any("passes the base" in w or "into the base" in w for w in warnings)
+    assert fallbacks == 0 and asked < reference_asked
+    assert len(passed) == 1 and passed[0] >= 5e-4
