@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import difflib
 import json
 import os
 import shutil
@@ -193,6 +194,7 @@ def _main(args, overrides: dict[str, str]) -> int:
     if len(args.recordings) > 1 and (args.output or args.rerun):
         raise ConfigError("-o and --rerun take one recording at a time",
                           field="-o" if args.output else "--rerun")
+    _check_override_roots(overrides)
     _check_physics_overrides(args.recordings, overrides)
     if len(args.recordings) > 1:
         _check_part_overrides(args.recordings, overrides)
@@ -215,6 +217,27 @@ def _main(args, overrides: dict[str, str]) -> int:
     finally:
         for table in outputs.values():
             table.discard()
+
+
+# What a --set key may begin with (``replay._override_target``).
+_OVERRIDE_ROOTS = ("physics", "parts", "tools")
+
+
+def _check_override_roots(overrides: dict[str, str]) -> None:
+    """A ``--set`` key that begins with none of ``physics.``, ``parts.``, ``tools.`` is one
+    error before anything is read or written, with the one it is close to (a researcher's
+    trial: ``part.pin.mass=2`` failed each recording of a study on its own and replaced
+    its table with rows of the error)."""
+    for key in overrides:
+        root, dot, rest = key.partition(".")
+        if root in _OVERRIDE_ROOTS and dot:
+            continue
+        near = difflib.get_close_matches(root.lower(), _OVERRIDE_ROOTS, n=1, cutoff=0.6)
+        hint = f" (did you mean {near[0]}.{rest}?)" if near and rest else ""
+        raise ConfigError("only physics parameters, tools and parts can be changed: "
+                          "physics.NAME=VALUE, tools.TOOL.FIELD=VALUE, "
+                          "parts.PART.constraints.NAME.FIELD=VALUE or parts.PART.FIELD=VALUE"
+                          + hint, field=f"--set {key}")
 
 
 def _check_physics_overrides(recordings: list[str], overrides: dict[str, str]) -> None:

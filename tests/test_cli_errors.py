@@ -1046,6 +1046,29 @@ def test_a_bad_physics_set_writes_nothing_and_says_so_once(tmp_path):
     assert table.read_bytes() == good
 
 
+@pytest.mark.parametrize("key, meant", [("part.peg.mass", "parts.peg.mass"),
+                                       ("physic.friction_dynamic", "physics.friction_dynamic"),
+                                       ("Physics.friction_dynamic", "physics.friction_dynamic"),
+                                       ("tool.hoist.max_mass_kg", "tools.hoist.max_mass_kg"),
+                                       ("gravity", None)])
+def test_a_set_typo_in_its_first_word_writes_nothing_and_says_so_once(tmp_path, key, meant):
+    """A researcher's trial: ``--set part.pin.mass=2`` (``parts`` meant) over a study failed
+    each recording on its own and replaced the study's table with rows of the error, and
+    its --events with a header. It is one error before anything is written, naming the key
+    it is close to, and the tables are kept."""
+    files = [str(RECORDINGS / f"{n}.mcap") for n in ("drop_on_table", "gear_pendulum")]
+    table, events = tmp_path / "study.csv", tmp_path / "events.csv"
+    assert run_cli("vade-replay", *files, "--csv", str(table), "--events",
+                   str(events)).returncode == 0
+    good = (table.read_bytes(), events.read_bytes())
+    result = run_cli("vade-replay", *files, "--set", f"{key}=2", "--csv", str(table),
+                     "--events", str(events))
+    _assert_clean_error(result, f"--set {key}: only physics parameters, tools and parts")
+    assert result.stderr.count("\n") == 1 and result.stdout == ""
+    assert (f"(did you mean {meant}?)" in result.stderr) == (meant is not None)
+    assert (table.read_bytes(), events.read_bytes()) == good
+
+
 def test_a_recording_given_twice_is_replayed_once(tmp_path):
     golden = RECORDINGS / "drop_on_table.mcap"
     result = run_cli("vade-replay", str(golden), str(golden.parent / "." / golden.name))
