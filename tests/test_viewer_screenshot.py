@@ -71,7 +71,7 @@ def test_review_loads_in_the_web_viewer(viewer_available, tmp_path):
 
 def test_a_broken_file_is_reported_not_screenshotted(viewer_available, tmp_path):
     bad = tmp_path / "bad.rrd"
-    bad.write_bytes(b"not a rerun file" * 64)
+    bad.write_bytes(b"RRF2" + b"not a rerun file" * 64)  # (its head passes the check below)
     with pytest.raises(ViewerScreenshotError, match="Failed to decode"):
         screenshot_from_rrd(bad, png_path=tmp_path / "bad.png", settle_s=0.0, load_timeout_s=60.0)
     assert not (tmp_path / "bad.png").exists()
@@ -122,3 +122,29 @@ def _png_pixels(path) -> np.ndarray:
                 row[x] = (line[x] + pred) & 0xFF
         out[y] = previous = row
     return out.reshape(height, width, channels)[:, :, :3].astype(np.uint8)
+
+
+@pytest.mark.parametrize("given, output, message", [
+    ("recording", "shot.png", "is a recording (MCAP), not a review: write its review first"),
+    ("text", "shot.png", "is not a rerun review (.rrd)"),
+    ("none", "shot.png", "no such review"),
+    ("review", "shot.mcap", "a screenshot is written as PNG or JPEG, by its name"),
+    ("review", "shots.png", "is a folder; give a file name to write"),
+])
+def test_a_users_slip_is_one_line_before_chromium_starts(tmp_path, capsys, given, output,
+                                                          message):
+    """A researcher's trial: an output named .mcap or in a read-only folder gave a
+    playwright traceback after ~30 s of rendering (exit 1), and a recording given for the
+    review waited 90 s to fail. Each is one line, exit 2, at once (no Chromium needed)."""
+    import json
+    from vade_replay import screenshot
+    golden = Path(__file__).resolve().parents[1] / "recordings" / "drop_on_table.mcap"
+    paths = {"recording": golden, "none": tmp_path / "none.rrd",
+             "text": tmp_path / "t.rrd", "review": tmp_path / "r.rrd"}
+    paths["text"].write_text(json.dumps({"not": "a review"}))
+    paths["review"].write_bytes(b"RRF2" + bytes(64))
+    (tmp_path / "shots.png").mkdir()
+    assert screenshot.main([str(paths[given]), "-o", str(tmp_path / output)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and message in err and err.count("\n") == 1
+

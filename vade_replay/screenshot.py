@@ -82,6 +82,9 @@ def screenshot_from_rrd(
     seconds for SwiftShader to draw. Raises ``ViewerScreenshotError`` if Chromium or
     playwright is missing, the file is never fetched, or the page shows an error banner.
     """
+    rrd_path = Path(rrd_path).resolve()
+    png_path = Path(png_path)
+    _check_paths(rrd_path, png_path)
     try:
         from playwright.sync_api import Error as PlaywrightError
         from playwright.sync_api import sync_playwright
@@ -92,10 +95,6 @@ def screenshot_from_rrd(
     chromium_path = chromium_path or find_chromium()
     if chromium_path is None:
         raise ViewerScreenshotError("no Chromium found: apt-get install chromium (or set VADE_CHROMIUM)")
-    rrd_path = Path(rrd_path).resolve()
-    png_path = Path(png_path)
-    if not rrd_path.is_file():
-        raise ViewerScreenshotError(f"no such recording: {rrd_path}")
 
     # Imported here so that `--help` and the error paths above do not load rerun.
     from vade_replay.view import serve_web_viewer_assets
@@ -133,8 +132,13 @@ def screenshot_from_rrd(
                     nudge += 1
                     page.wait_for_timeout(500)
                 _raise_on_error(page, console=console)
-                png_path.parent.mkdir(parents=True, exist_ok=True)
-                page.screenshot(path=str(png_path))
+                try:
+                    page.screenshot(path=str(png_path))
+                except (PlaywrightError, OSError) as exc:  # (a disk that filled up)
+                    why = exc.strerror if isinstance(exc, OSError) and exc.strerror \
+                        else str(exc).splitlines()[0]
+                    raise ViewerScreenshotError(f"{png_path}: cannot write it: {why}") \
+                        from None
             finally:
                 browser.close()
     finally:
@@ -147,6 +151,40 @@ def screenshot_from_rrd(
     return ScreenshotResult(
         png_path=png_path, rrd_bytes_served=served["bytes"], load_s=load_s, viewer_warnings=warnings
     )
+
+
+# What the screenshot is written as, by its name's ending (playwright's own rule).
+_IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
+
+
+def _check_paths(rrd_path: Path, png_path: Path) -> None:
+    """Before Chromium starts: a review to read and an image to write (a researcher's
+    trial: an output named .mcap, or in a read-only folder, gave a playwright traceback
+    after 30 s of rendering, and a recording given for the review waited 90 s to fail)."""
+    from vade_replay.errors import VadeError
+    from vade_replay.recording import RERUN_MAGIC, ensure_writable
+    from vade_replay.session import MCAP_MAGIC
+    if not rrd_path.is_file():
+        raise ViewerScreenshotError(f"no such review: {rrd_path}")
+    try:
+        with open(rrd_path, "rb") as stream:
+            head = stream.read(8)
+    except OSError as exc:
+        raise ViewerScreenshotError(f"{rrd_path}: cannot read it: {exc.strerror}") from None
+    if head.startswith(MCAP_MAGIC):
+        raise ViewerScreenshotError(
+            f"{rrd_path} is a recording (MCAP), not a review: write its review first, "
+            f"vade-replay {rrd_path} --rerun REVIEW.rrd")
+    if not head.startswith(RERUN_MAGIC):
+        raise ViewerScreenshotError(f"{rrd_path} is not a rerun review (.rrd)")
+    if png_path.suffix.lower() not in _IMAGE_SUFFIXES:
+        raise ViewerScreenshotError(
+            f"-o {png_path}: a screenshot is written as PNG or JPEG, by its name: end it "
+            ".png or .jpg")
+    try:
+        ensure_writable(png_path, field="-o")
+    except VadeError as exc:
+        raise ViewerScreenshotError(str(exc)) from None
 
 
 def _wait_until_loaded(page, *, console: list[str], rrd_url: str, timeout_s: float) -> None:
