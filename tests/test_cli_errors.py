@@ -1293,6 +1293,25 @@ def test_a_mesh_in_other_units_than_the_session_is_warned_of_first(tmp_path, ext
         assert lines.index(mesh[0]) == 0  # before what it causes (inside the table, ...)
 
 
+@pytest.mark.parametrize("size", [[40.0, 40.0, 80.0], [0.04, 0.04, 0.08]])
+def test_a_session_in_mm_written_as_metres_is_warned_of_by_its_own_shapes(tmp_path, size):
+    """A researcher's trial: a session of boxes and cylinders written in millimetres with
+    "units": "m" (a metre example copied, mm numbers typed) built an 80 m pin of 23,533 t
+    and said nothing (the size check looked at mesh files only). A part of its own shapes
+    over 5 m across is warned of first; a 4 x 4 x 8 cm one is not."""
+    doc = _doc()
+    doc["parts"][0]["shape"] = {"type": "box", "size": size}
+    result = run_cli("vade-record", str(_write(tmp_path, doc)), "-o", str(tmp_path / "o.mcap"))
+    lines = [line for line in result.stderr.splitlines() if line.startswith("warning")]
+    said = [line for line in lines if "too large for a part of an assembly" in line]
+    if size[0] < 1.0:
+        assert result.returncode == 0 and not said, result.stderr
+        return
+    assert len(said) == 1 and "40 x 40 x 80 m across" in said[0] \
+        and 'another unit than its "units": "m"?' in said[0], result.stderr
+    assert lines.index(said[0]) == 0  # before what it causes
+
+
 def test_a_constraint_that_fits_no_mesh_drawn_in_millimetres_says_so(tmp_path):
     """A CAD user's trial: a base part's mesh drawn in millimetres in a metre session, with
     an axis constraint, was refused only as "check point, direction and radius" (a

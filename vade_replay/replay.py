@@ -1755,9 +1755,9 @@ def _sunk(collision: CollisionWorld, body, box, environment: list, gravity) -> \
 
 
 def mesh_scale_warnings(scene: Scene, doc: dict | None) -> list[str]:
-    """A part's or the base part's mesh file (``shape.file`` with no ``shape.units``, or
-    such a child of a compound shape) over 5 m across: drawn in other units than the
-    session's. (A user's trial: a mesh drawn in
+    """A part or the base part over 5 m across: a mesh file (``shape.file`` with no
+    ``shape.units``, or such a child of a compound shape) drawn in other units than the
+    session's, or, of shapes of its own, the session's numbers in another unit. (A user's trial: a mesh drawn in
     millimetres in a metre session was warned of only as starting 6e+04 mm inside the
     table, and its grab refused as too heavy.)"""
     if not doc:
@@ -1775,10 +1775,19 @@ def mesh_scale_warnings(scene: Scene, doc: dict | None) -> list[str]:
         shape, body = item.get("shape"), bodies.get(str(item.get("name")))
         meshes = _unitless_meshes(shape, f"{where}.shape")
         given = _meshes_with_units(shape, f"{where}.shape")
-        if not (meshes or given) or body is None:
+        if body is None:
             continue
         across = oversize_across(body, UNIT_TO_M[units])
         if across is None:
+            continue
+        if not (meshes or given):
+            # Shapes of its own (box, cylinder, ...): the session's numbers in another unit
+            # than its "units" (a researcher's trial: a session in mm written as "units":
+            # "m" built an 80 m pin of 23,533 t and a 1.2 km table, and said nothing).
+            out.append(f"{where}.shape: the part is {across} {units} across, too large for "
+                       f"a part of an assembly: are the session's numbers in another unit "
+                       f"than its \"units\": \"{units}\"? (its mass and inertia follow its "
+                       "size)")
             continue
         if not meshes:
             # Every mesh gives its units, and the part is still that large (an engineer's
