@@ -271,6 +271,20 @@ def compared(tmp_path_factory):
     return path, counts, read_rrd(path)
 
 
+def test_a_what_ifs_departure_is_marked_as_asked_for_not_as_an_error(tmp_path):
+    """A researcher's trial read a what-if review's red DIVERGED lane and ERROR line as a
+    failure: departing is what a what-if is for. It is an INFO line and an amber
+    WHAT-IF DEPARTS lane; a replay's divergence stays an ERROR (above)."""
+    path = tmp_path / "what_if.rrd"
+    write_review(path, scene=SCENE, frames=session(), compare_frames=session(nudge_from=17),
+                 compare_label="what_if", divergence_frame=17)
+    store = read_rrd(path)
+    ((frame, text),) = rows(store, "/markers/divergence", "TextLog:text")
+    assert frame == 17 and text == "The what-if departs from the recording at frame 17: peg"
+    assert rows(store, "/markers/divergence", "TextLog:level") == [(17, "INFO")]
+    assert rows(store, "/markers/divergence", "StateChange:state") == [(17, "WHAT-IF DEPARTS")]
+
+
 def test_divergence_is_marked_at_its_frame(compared):
     _, counts, store = compared
     ((frame, text),) = rows(store, "/markers/divergence", "TextLog:text")

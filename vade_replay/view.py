@@ -18,7 +18,8 @@ Entity layout (``L`` is the run's label, e.g. ``recorded``; a compared run uses 
 - ``plots/{speed,angular_speed}/L/<part>``, ``plots/energy/L/<part>/{kinetic,potential,total}``.
 - ``plots/difference/{position_m,rotation_rad}/<part>``: pose difference between two runs.
 - ``events/L``: every event as a TextLog line with its cause.
-- ``markers/divergence``: ERROR log and a state lane at the first diverging frame.
+- ``markers/divergence``: ERROR log and a state lane at the first diverging frame (a
+  what-if's departure: an INFO line and a WHAT-IF DEPARTS lane).
 """
 
 from __future__ import annotations
@@ -290,7 +291,8 @@ def _log_runs(
             if record is not None:
                 _log_pose_difference(rec, record=record, compared=compared)
         if divergence_frame is not None and not marked and current.frame >= divergence_frame:
-            _log_divergence(rec, frame=divergence_frame, record=record, compared=compared)
+            _log_divergence(rec, frame=divergence_frame, record=record, compared=compared,
+                            what_if=compare_label == "what_if")
             marked = True
         if not started:
             on_first_frame()
@@ -555,27 +557,34 @@ def _log_pose_difference(rec: rr.RecordingStream, *, record: FrameRecord, compar
 
 
 def _log_divergence(
-    rec: rr.RecordingStream, *, frame: int, record: FrameRecord | None, compared: FrameRecord | None
+    rec: rr.RecordingStream, *, frame: int, record: FrameRecord | None, compared: FrameRecord | None,
+    what_if: bool = False,
 ) -> None:
-    # Logged at the divergence frame itself, even if the stream skipped it.
+    # Logged at the divergence frame itself, even if the stream skipped it. A what-if's
+    # departure is what it was asked for: marked as such, not as an error (a researcher's
+    # trial read the red DIVERGED lane and ERROR line of a what-if as a failure).
     rec.set_time("frame", sequence=frame)
-    text = f"Runs diverge at frame {frame}"
+    state, color, level = ("WHAT-IF DEPARTS", 0xE0A040FF, rr.TextLogLevel.INFO) if what_if \
+        else ("DIVERGED", 0xE04040FF, rr.TextLogLevel.ERROR)
+    verb = "departs" if what_if else "diverges"
+    text = (f"The what-if departs from the recording at frame {frame}" if what_if
+            else f"Runs diverge at frame {frame}")
     differing = list(record.parts) if record is not None else []
     if record is not None and compared is not None:
         others = {part.name: part for part in compared.parts}
         differing = [part for part in record.parts if others.get(part.name) != part]
         if differing:
             text += f": {', '.join(part.name for part in differing)}"
-    rec.log("markers/divergence", rr.TextLog(text, level=rr.TextLogLevel.ERROR), rr.StateChange(state="DIVERGED"))
-    rec.log("markers/divergence", rr.StateConfiguration(values=["DIVERGED"], colors=[0xE04040FF]), static=True)
+    rec.log("markers/divergence", rr.TextLog(text, level=level), rr.StateChange(state=state))
+    rec.log("markers/divergence", rr.StateConfiguration(values=[state], colors=[color]), static=True)
     if differing:
         rec.log(
             "world/markers/divergence",
             rr.Points3D(
                 [part.position for part in differing],
-                colors=[0xE04040FF],
+                colors=[color],
                 radii=[0.015],
-                labels=[f"{part.name} diverges @ {frame}" for part in differing],
+                labels=[f"{part.name} {verb} @ {frame}" for part in differing],
             ),
         )
 
