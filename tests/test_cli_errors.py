@@ -40,6 +40,17 @@ def test_session_not_json(tmp_path):
     _assert_clean_error(run_cli("vade-record", str(_write(tmp_path, "{oops"))), "s.json", "JSON")
 
 
+def test_a_tracker_log_given_for_its_session_says_what_it_is(tmp_path):
+    """A researcher's trial: ``vade-record log.csv`` (the log, not its session) read "not
+    valid JSON: Expecting value". It says it is a tracker log and where one goes."""
+    log = tmp_path / "p01.csv"
+    log.write_text("time,device,x,y,z,q0,q1,q2,q3,grip\n0.0,right_hand,0,0,1,0,0,0,1,0\n")
+    result = run_cli("vade-record", str(log), "-o", str(tmp_path / "o.mcap"))
+    _assert_clean_error(result, f"{log}: this is a tracker log (CSV), not a session file",
+                        "tracker.csv")
+    assert not (tmp_path / "o.mcap").exists()
+
+
 @pytest.mark.parametrize("mutate, field", [
     (lambda d: d["parts"][0]["shape"].pop("size"), "parts[0].shape"),
     (lambda d: d["tracker"].update(rate_hz=0), "tracker.rate_hz"),
