@@ -663,3 +663,19 @@ def test_a_chunk_damaged_into_a_data_end_is_damage_not_the_file_s_end(tmp_path, 
     assert ("a data-end record comes before the data's end (its summary counts 181 frames)"
             in result.stderr), result.stderr
     assert result.stderr.startswith(f"error: {path}: damaged after ")
+
+
+def test_an_output_on_a_read_only_file_system_is_said_to_be_one(tmp_path, monkeypatch):
+    """A researcher's trial: an output on a read-only mount read "permission denied", which
+    sent them to chmod in vain. A read-only file system is said as one (the folder's
+    statvfs flag); a folder that is only not writable stays "permission denied"."""
+    import os
+    import types
+    from vade_replay.errors import VadeError
+    from vade_replay.recording import ensure_writable
+    monkeypatch.setattr(os, "access", lambda path, mode: False)
+    with pytest.raises(VadeError, match="cannot write here: permission denied"):
+        ensure_writable(tmp_path / "out.mcap", field="-o")
+    monkeypatch.setattr(os, "statvfs", lambda path: types.SimpleNamespace(f_flag=os.ST_RDONLY))
+    with pytest.raises(VadeError, match="cannot write here: a read-only file system"):
+        ensure_writable(tmp_path / "out.mcap", field="-o")

@@ -301,9 +301,20 @@ def ensure_writable(path: str | Path, field: str | None = None) -> Path:
         raise RecordingError(f"cannot create its folder: {exc.strerror}", file=str(path),
                              field=field) from None
     if not os.access(path.parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
-        raise RecordingError("cannot write here: permission denied", file=str(path),
-                             field=field)
+        raise RecordingError(f"cannot write here: {_why_unwritable(path.parent)}",
+                             file=str(path), field=field)
     return path
+
+
+def _why_unwritable(folder: Path) -> str:
+    """A read-only file system (a mounted archive, a study's copy on read-only media) is
+    said as one: "permission denied" sent a researcher's trial to chmod, in vain."""
+    try:
+        if os.statvfs(folder).f_flag & os.ST_RDONLY:
+            return "a read-only file system"
+    except (OSError, AttributeError):  # (no statvfs on Windows)
+        pass
+    return "permission denied"
 
 
 def in_place(path: Path) -> bool:
