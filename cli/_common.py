@@ -198,9 +198,10 @@ class _TermWatch:
 
 
 def _run(main: Callable[[list[str] | None], int], argv: list[str] | None) -> int:
-    global UNDONE
+    global UNDONE, DONE
     StdoutOrNothing.gone = False
     UNDONE = ""  # (a command sets its own: a run in the same process must not inherit it)
+    DONE = ""
     note = native.uncompiled_note()
     if note is not None:
         print(note, file=sys.stderr)
@@ -261,6 +262,10 @@ def closed_pipe(stream) -> bool:
 # says so (``_pipe_closed``): set by a command that writes files as it prints (vade-goldens).
 # A run with files to write at its end goes on without standard output instead.
 UNDONE = ""
+# What a command had done whole before it printed (``vade-record``: its recording), for
+# that line to say instead of "stopped" (a researcher's trial: "stopped" of a recording of
+# 108,001 frames written whole, which replayed).
+DONE = ""
 
 
 def _pipe_closed() -> int:
@@ -275,6 +280,9 @@ def _pipe_closed() -> int:
                 _to_devnull(stream)
             except (OSError, ValueError):
                 pass
+    if DONE:
+        print(f"standard output was closed by its reader; {DONE}", file=sys.stderr)
+        return EXIT_PIPE_CLOSED
     print("stopped: standard output was closed by its reader"
           + (f"; {UNDONE}" if UNDONE else ""), file=sys.stderr)
     return EXIT_PIPE_CLOSED

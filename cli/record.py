@@ -11,6 +11,7 @@ from vade_replay.errors import ConfigError, VadeError
 from vade_replay.recording import ensure_writable
 from vade_replay.replay import miss_line, record
 
+from . import _common
 from ._common import EXIT_OK, Progress, counted, not_standard_output, print_json, run
 
 
@@ -62,6 +63,8 @@ def _main(args: argparse.Namespace) -> int:
     summary = record(session, out, on_frame=progress.update, replace_other=args.force,
                      on_warnings=warn_early)
     progress.close()
+    # Written whole: what a reader gone from standard output leaves undone is only its lines.
+    _common.DONE = f"the recording was written whole ({out}); its summary lines were not shown"
     for warning in summary.warnings:
         if warning not in early:
             print(f"warning: {args.session}: {warning}", file=sys.stderr)

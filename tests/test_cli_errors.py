@@ -1126,6 +1126,28 @@ def test_a_run_stopped_by_a_closed_standard_output_names_only_what_it_left_undon
                                             "were not checked\n")
 
 
+def test_vade_record_whose_reader_goes_says_the_recording_was_written_whole(tmp_path):
+    """A researcher's trial: ``vade-record long.json -o X | true`` said "stopped: standard
+    output was closed by its reader" (141) of a recording written whole, which replayed.
+    The recording is complete before its summary lines: the line says so (still 141)."""
+    import subprocess
+    import sys
+
+    from conftest import COMMANDS, ROOT
+    out = tmp_path / "gear.mcap"
+    proc = subprocess.Popen([sys.executable, "-m", COMMANDS["vade-record"],
+                             str(RECORDINGS / "gear_pendulum.json"), "-o", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=ROOT)
+    proc.stdout.close()  # the reader goes before the run prints
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=300) == 141
+    assert err.splitlines()[-1] == (f"standard output was closed by its reader; the recording "
+                                    f"was written whole ({out}); its summary lines were not "
+                                    "shown")
+    assert "stopped" not in err and "Traceback" not in err
+    assert run_cli("vade-replay", str(out)).returncode == 0
+
+
 def test_a_study_what_if_line_says_what_changed_in_the_analysis():
     """A researcher's trial: over several recordings a what-if's line ended "analysis
     changed", which told a study nothing; a lone recording's "analysis:" line lists the
