@@ -1093,14 +1093,33 @@ class CollisionWorld:
         for index, fixed in enumerate(self._fixed):
             gap = 0.0
             for axis in range(3):
+                # (Products, not ``** 2``: compiled, a float's power is a generic call. A
+                # filter: an fcl query follows where it passes, whose answer decides.)
                 c = center[axis]
                 if c < fixed.lo[axis]:
-                    gap += (fixed.lo[axis] - c) ** 2
+                    e = fixed.lo[axis] - c
+                    gap += e * e
                 elif c > fixed.hi[axis]:
-                    gap += (c - fixed.hi[axis]) ** 2
+                    e = c - fixed.hi[axis]
+                    gap += e * e
             if gap <= radius * radius:
                 near.append(index)
         return tuple(near)
+
+    def environment_within(self, center: sp.Vec3, radius: float) -> bool:
+        """Whether a sphere can touch any environment object's world box
+        (``environment_near`` without the list: a test a frame of each part on the base)."""
+        self.stats["bounding_tests"] += 1
+        cx, cy, cz = center
+        limit = radius * radius
+        for fixed in self._fixed:
+            lo, hi = fixed.lo, fixed.hi
+            ex = lo[0] - cx if cx < lo[0] else (cx - hi[0] if cx > hi[0] else 0.0)
+            ey = lo[1] - cy if cy < lo[1] else (cy - hi[1] if cy > hi[1] else 0.0)
+            ez = lo[2] - cz if cz < lo[2] else (cz - hi[2] if cz > hi[2] else 0.0)
+            if ex * ex + ey * ey + ez * ez <= limit:
+                return True
+        return False
 
     def environment_near_box(self, lo: sp.Vec3, hi: sp.Vec3) -> tuple[int, ...]:
         """Indices of environment objects whose world box meets the box ``lo``-``hi``."""

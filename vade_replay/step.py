@@ -1561,65 +1561,50 @@ def _meet_environment(f: _Frame, before: tuple[PartState, ...]) -> None:
     into the table rode 3 cm into it, slid off inside it and fell through it, there being
     no contact from inside a mesh).
 
-    The frame's path of a part: the base's (linear, slerp) carrying the part's pose on it,
-    itself linear and slerp from the frame's start to its end (a slide's curve within one
-    frame is left out: the instant is the path's). Conservative advancement on it: no
-    point of the part moves further than ``reach`` over the whole frame, so a step of
-    (d - tol/2) / reach of the frame passes through nothing. A part that did not move
-    (resting on a base at rest) is not asked; one whose box stays clear of every object's
-    is asked nothing more (a bounding test)."""
+    The frame's path of a part: from its pose at the frame's start to its pose at the end,
+    linear and slerp (the arc of a part on a turning base lies off that chord by its
+    sagitta, r phi^2 / 8: 0.04 mm at 0.3 m from a base turning 2 rad/s at 60 Hz).
+    Conservative advancement on it: no point of the part moves further than ``reach``
+    over the frame, so a step of (d - tol/2) / reach of the frame passes through nothing.
+    A part that did not move (resting on a base at rest) is not asked; one whose sphere
+    stays clear of every object's box is asked nothing more (one bounding test)."""
     physics = f.scene.physics
     if physics.environment_contact != "every_part" or f.base_pose is None \
             or not f.scene.environment:
         return
-    base1 = f.base_pose
-    base0 = f.base_prev if f.base_prev is not None else base1
     tol = physics.contact_tolerance
-    d_origin = sp.norm(sp.sub(base1.position, base0.position))
-    phi_base = sp.quat_angle_between(base0.rotation, base1.rotation)
     for index in f.awake:
         part = f.parts[index]
         if part.mode is not ONBASESTATIC and part.mode is not ONBASESLIDE:
             continue
         old = before[index]
         # From the frame's start where it was on the base then; else (let go onto it, or
-        # landed on it, this frame) from where it is at the frame's end.
+        # landed on it, this frame) where it is at the frame's end.
         on_before = old.mode is ONBASESTATIC or old.mode is ONBASESLIDE
         p0 = old.pose if on_before else part.pose
-        if on_before and p0 == part.pose and d_origin == 0.0 and phi_base == 0.0:
+        p1 = part.pose
+        if on_before and p0.position == p1.position and p0.rotation == p1.rotation:
             continue  # nothing moved: nothing new to meet
         body = f.scene.parts[index]
-        # How far any point of the part goes over the frame's path (below), with no pose
-        # made: its pose on the base moves by at most the world move and the base's.
         r = body.reach_from_origin
-        arm0 = sp.norm(sp.sub(p0.position, base0.position))
-        arm1 = sp.norm(sp.sub(part.pose.position, base1.position))
-        slide = sp.norm(sp.sub(part.pose.position, p0.position)) + d_origin + phi_base * arm0
-        phi_rel = sp.quat_angle_between(p0.rotation, part.pose.rotation) + phi_base
-        reach = d_origin + phi_base * (max(arm0, arm1) + r) + slide + phi_rel * r
-        # Its box at the frame's end, widened by that: clear of every object's box, done.
-        lo, hi = _world_box(body, part.pose)
+        reach = sp.norm(sp.sub(p1.position, p0.position)) \
+            + _angle_bound(p0.rotation, p1.rotation) * r
+        # A sphere about its frame's origin at the frame's end, widened by that: clear of
+        # every object's box, done (a part on a base held above the table: one test).
+        if not f.collision.environment_within(p1.position, r + reach + tol):
+            continue
+        lo, hi = _world_box(body, p1)
         near = f.collision.environment_near_box(sp.sub(lo, (reach + tol,) * 3),
                                                 sp.add(hi, (reach + tol,) * 3))
         if not near:
             continue
-        rel1 = base1.inverse().compose(part.pose)
-        rel0 = base0.inverse().compose(p0)
-
-        def at(lam: float) -> sp.Pose:
-            if lam >= 1.0:
-                return part.pose
-            base = sp.Pose(sp.add(base0.position, sp.scale(
-                sp.sub(base1.position, base0.position), lam)),
-                sp.slerp(base0.rotation, base1.rotation, lam))
-            rel = sp.Pose(sp.add(rel0.position, sp.scale(
-                sp.sub(rel1.position, rel0.position), lam)),
-                sp.slerp(rel0.rotation, rel1.rotation, lam))
-            return base.compose(rel)
         lam = 0.0 if on_before else 1.0
         hit = -1
+        pose = p1
         for _ in range(_CA_MAX_ITERATIONS):
-            pose = at(lam)
+            pose = p1 if lam >= 1.0 else sp.Pose(
+                sp.add(p0.position, sp.scale(sp.sub(p1.position, p0.position), lam)),
+                sp.slerp(p0.rotation, p1.rotation, lam))
             d, which = f.collision.distance_to_environment(part.name, pose, near)
             if d <= tol:
                 hit = which
@@ -1633,6 +1618,21 @@ def _meet_environment(f: _Frame, before: tuple[PartState, ...]) -> None:
         f.events.append(ContactMade(f.inputs.frame, part.name, Cause.HIT_ENVIRONMENT.value,
                                     f.collision.environment_name(hit), t_c))
         f.change_mode(index, PartState(part.name, STATIC, pose), Cause.HIT_ENVIRONMENT)
+
+
+def _angle_bound(a: sp.Quat, b: sp.Quat) -> float:
+    """At least the angle of the rotation between two unit quaternions, from their chord
+    (no inverse trigonometry): |a - b| = 2 sin(angle / 4) on the nearer sign, and
+    sin x >= x 2 sqrt(2) / pi on [0, pi / 4], so angle <= |a - b| pi / sqrt(2)."""
+    a0, a1, a2, a3 = a
+    b0, b1, b2, b3 = b
+    d0, d1, d2, d3 = a0 - b0, a1 - b1, a2 - b2, a3 - b3
+    e0, e1, e2, e3 = a0 + b0, a1 + b1, a2 + b2, a3 + b3
+    near = min(d0 * d0 + d1 * d1 + d2 * d2 + d3 * d3, e0 * e0 + e1 * e1 + e2 * e2 + e3 * e3)
+    return math.sqrt(near) * _PI_OVER_SQRT2
+
+
+_PI_OVER_SQRT2: Final = 2.2215  # (pi / sqrt(2) = 2.22144..., rounded up)
 
 
 def _world_box(body: Body, pose: sp.Pose) -> tuple[sp.Vec3, sp.Vec3]:
