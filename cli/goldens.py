@@ -58,8 +58,25 @@ def stale(session: session_mod.Session, recording: Recording) -> str | None:
         return f"field {path or '(the whole file)'}: {was!r} in the golden, {now!r} now"
     for name in sorted(set(session.files) | set(recorded.files)):
         if session.files.get(name) != recorded.files.get(name):
-            return f"file {name} is not the one the golden was made with"
+            return f"file {name} is not the one the golden was made with" + _where_changed(
+                recorded.files.get(name), session.files.get(name))
     return None
+
+
+def _where_changed(was: bytes | None, now: bytes | None) -> str:
+    """Where a file the session names first differs from the golden's: its line, for a
+    text file (a tracker log: a researcher's trial was told only that the log changed),
+    or its byte; nothing where one of them is missing."""
+    if was is None or now is None:
+        return " (not in the golden)" if was is None else " (missing now)"
+    at = next((i for i, (a, b) in enumerate(zip(was, now)) if a != b), min(len(was), len(now)))
+    if b"\0" in was[:4096] or b"\0" in now[:4096]:
+        return f" (first at byte {at}; {len(was)} bytes in the golden, {len(now)} now)"
+    line = was[:at].count(b"\n") + 1
+    old_line = was.split(b"\n")[line - 1] if line - 1 < len(was.split(b"\n")) else b""
+    new_line = now.split(b"\n")[line - 1] if line - 1 < len(now.split(b"\n")) else b""
+    show = lambda text: text.decode("utf-8", "replace").rstrip("\r")[:80]  # noqa: E731
+    return f" (first at line {line}: {show(old_line)!r} in the golden, {show(new_line)!r} now)"
 
 
 def _check(path: Path, golden: Path, tolerance: Tolerance | None = None) -> tuple[str, str]:

@@ -354,8 +354,13 @@ def test_a_golden_whose_tracker_log_changed_names_the_log_and_takes_the_file_nam
     (tmp_path / "log.csv").write_text(CSV.replace("2.000,right_hand", "2.500,right_hand"))
     result = run_cli("vade-goldens", "--check", "--dir", str(tmp_path), "csvsess")
     assert result.returncode == 1
+    # Where in it (a researcher's trial: told only that the log changed).
+    line = 1 + CSV[:CSV.index("2.000,right_hand")].count("\n")
+    old_row = CSV.splitlines()[line - 1]
     assert (f"STALE: log.csv (named by {tmp_path / 'csvsess.json'}) changed since its golden "
-            "was made (file log.csv is not the one the golden was made with)") in result.stdout
+            "was made (file log.csv is not the one the golden was made with (first at line "
+            f"{line}: {old_row!r} in the golden, {old_row.replace('2.000', '2.500')!r} now))"
+            ) in result.stdout
 
 
 def test_a_folder_s_session_without_a_golden_is_named_by_its_own_fault(tmp_path):
@@ -428,3 +433,17 @@ def test_a_golden_without_its_session_cut_short_is_named_so(tmp_path):
     assert result.returncode == 2
     assert f"error: {tmp_path / 'cut.mcap'}: cut short (a crash while it was written), and no " \
         "session cut.json beside it (renamed or deleted?)" in result.stderr
+
+
+def test_where_a_named_file_changed_is_said():
+    """The line of a text file (a tracker log) where it first differs from the golden's, or
+    the byte of a binary one (a mesh), or that it is new or gone."""
+    from cli.goldens import _where_changed
+    assert _where_changed(b"a\nb\nc\n", b"a\nB\nc\n") == (
+        " (first at line 2: 'b' in the golden, 'B' now)")
+    assert _where_changed(b"a\nb\n", b"a\nb\nc\n") == (
+        " (first at line 3: '' in the golden, 'c' now)")
+    assert _where_changed(b"solid\0\x01\x02", b"solid\0\x01\x03") == (
+        " (first at byte 7; 8 bytes in the golden, 8 now)")
+    assert _where_changed(None, b"x") == " (not in the golden)"
+    assert _where_changed(b"x", None) == " (missing now)"
