@@ -2070,3 +2070,19 @@ def test_a_binary_ply_or_glb_with_a_nan_vertex_is_refused_by_name(tmp_path, wher
                         f"mesh {name!r} holds 2 coordinates that are not finite (NaN or "
                         "infinite): fix the export")
     assert not list(tmp_path.glob("*.mcap*"))
+
+
+def test_ctrl_c_while_the_tracker_log_is_read_says_nothing_was_recorded(tmp_path, monkeypatch):
+    """A researcher's trial: Ctrl-C while a long log was read (before the first frame)
+    printed only "interrupted"; it says nothing was recorded, and nothing is left."""
+    from vade_replay.session import Session
+
+    def reading(self):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(Session, "tracker_frames", reading)
+    out = tmp_path / "o.mcap"
+    result = run_cli("vade-record", str(RECORDINGS / "drop_on_table.json"), "-o", str(out))
+    assert result.returncode == 130
+    assert result.stderr == ("interrupted; nothing was recorded (the tracker log was being "
+                             "read)\n")
+    assert list(tmp_path.iterdir()) == []

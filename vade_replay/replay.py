@@ -1238,8 +1238,13 @@ def record(session: Session, out: str | Path, *,
             print(f"note: {note}", file=sys.stderr)
     # A log is read and checked whole before its first frame (``inputs.from_csv``): a bad
     # row is an error here, before anything is written.
-    stream = session.tracker_frames()
-    first_input = next(stream, None)
+    try:
+        stream = session.tracker_frames()
+        first_input = next(stream, None)
+    except KeyboardInterrupt as exc:
+        # (A researcher's trial: "interrupted" alone, while a long log was read.)
+        exc.add_note("nothing was recorded (the tracker log was being read)")
+        raise
     partial, target = partial_output(out)
     collision = CollisionWorld(scene)
     summary = RunSummary(session.name, parts=[p.name for p in scene.parts],
