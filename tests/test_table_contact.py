@@ -114,10 +114,10 @@ def _hand_z_at(gap: float) -> float:
 def test_a_part_on_the_base_is_stopped_by_the_table_the_base_is_lowered_into():
     """A physics trial: a block on a plate lowered into the table rode 3 cm into it, slid
     off inside it and fell through it (parts on the base met nothing of the environment).
-    It stops (STATIC, hit_environment) as its bottom comes within the contact tolerance of
-    the table's top, at the instant the closed form gives (between the tolerance and half
-    of it: the advancement's step, as a flying part's), and stays there as the plate goes
-    on down through the table; the replay is the recording."""
+    It stops (STATIC, hit_environment) as it goes 2 mm into the table's top (the allowance
+    for a tracker's noise: within the contact tolerance of that depth, at the instant the
+    closed form gives, the advancement's step as a flying part's), lifted out onto the
+    table's top, and stays there as the plate goes on down through the table."""
     from vade_replay.recording import Recording
     from vade_replay.replay import record, replay
     doc = _lowered_plate()
@@ -125,8 +125,11 @@ def test_a_part_on_the_base_is_stopped_by_the_table_the_base_is_lowered_into():
     tol = 1e-4
     (contact,) = [e for r in records for e in r.events if e.kind == "ContactMade"]
     assert (contact.part, contact.cause, contact.other) == ("block", "hit_environment", "table")
-    t_far = 1.4 + (1.0 - _hand_z_at(tol)) / 0.2          # its gap the tolerance
-    t_near = 1.4 + (1.0 - _hand_z_at(0.5 * tol)) / 0.2   # half of it
+    # Stopped as it goes into the table by the allowance (2 mm: a tracker's noise), then
+    # lifted out by it: between the tolerance and half of it past that depth.
+    deep = 0.002
+    t_far = 1.4 + (1.0 - _hand_z_at(tol - deep)) / 0.2
+    t_near = 1.4 + (1.0 - _hand_z_at(0.5 * tol - deep)) / 0.2
     assert t_far - 1e-9 <= contact.time_ns / 1e9 <= t_near + 1e-9
     changed = [(r.frame, e) for r in records for e in r.events if e.kind == "ModeChanged"]
     assert (changed[-1][1].from_mode, changed[-1][1].to_mode, changed[-1][1].cause) == (
@@ -135,7 +138,8 @@ def test_a_part_on_the_base_is_stopped_by_the_table_the_base_is_lowered_into():
     assert final.mode == "STATIC"
     assert 0.5 * tol - 1e-9 <= final.position[2] - 0.02 - _TOP <= tol + 1e-9
     assert records[-1].base.position[2] - _TOP < -0.02  # the plate went on into the table
-    assert all(r.parts[0].position[2] - 0.02 >= _TOP - 1e-12 for r in records)  # it did not
+    # It did not, but by the allowance in the frames before it was stopped.
+    assert all(r.parts[0].position[2] - 0.02 >= _TOP - deep - tol for r in records)
 
 
 def test_the_table_stops_nothing_on_a_base_kept_above_it_and_flying_keeps_the_old_rule(
@@ -195,8 +199,9 @@ def test_a_part_on_the_base_never_passes_into_the_table(thickness, descent_s, lo
                                                         pitch, rate_hz):
     """However fast the user lowers and turns the base into the table (up to 2.7 m/s and 30
     degrees about two axes, 30-120 Hz), a block resting on it, 1 mm to 4 cm thick, never
-    goes into the table's top by more than the contact tolerance: stopped at the table
-    (STATIC) or sliding off before, or carried clear of it. Its corners are its mesh's."""
+    goes into the table's top by more than the allowance (2 mm) and the contact tolerance,
+    and stopped there (STATIC) it is on the table's top, not in it: or it slides off
+    before, or is carried clear of it. Its corners are its mesh's."""
     tol = 1e-4
     doc = _lowered_plate()
     part = doc["parts"][0]
@@ -220,4 +225,59 @@ def test_a_part_on_the_base_never_passes_into_the_table(thickness, descent_s, lo
         pose = sp.Pose(snap.position, snap.rotation_xyzw)
         lowest = min(pose.apply((x * half[0], y * half[1], z * half[2]))[2]
                      for x in (-1, 1) for y in (-1, 1) for z in (-1, 1))
-        assert lowest >= _TOP - tol - 1e-9, (r.frame, snap.mode, lowest - _TOP)
+        assert lowest >= _TOP - 0.002 - tol - 1e-9, (r.frame, snap.mode, lowest - _TOP)
+        if snap.mode == "STATIC":
+            assert lowest >= _TOP - 1e-9, (r.frame, lowest - _TOP)  # lifted out onto it
+
+
+@pytest.mark.parametrize("seed", [11, 1, 2])
+def test_a_thin_base_resting_on_the_table_keeps_its_parts_through_tracker_noise(seed):
+    """A review: a 1.5 mm sheet held resting on the table, its hand's tracker noisy (0.5 mm,
+    0.1 degree), dipped into the table by about a millimetre and left 3 of 12 parts
+    behind on it (stopped there, STATIC), where the table would have pushed the sheet up.
+    Within the allowance (2 mm) nothing is stopped: both blocks go up with the sheet."""
+    block = {"type": "box", "size": [0.04, 0.04, 0.02]}
+    on_top = {"constraints": [{"type": "plane", "name": "bottom_on_top",
+                               "part": {"point": [0, 0, -0.01], "normal": [0, 0, -1]},
+                               "base": {"point": [0, 0, 0.00075], "normal": [0, 0, 1]},
+                               "friction": {"static": 0.4, "dynamic": 0.3}}]}
+    doc = session_doc(
+        parts=[{"name": "a", "shape": block, "density": 2700,
+                "pose": {"position": [0.3, -0.4, 0.75]}, "assembly": on_top},
+               {"name": "b", "shape": block, "density": 2700,
+                "pose": {"position": [0.3, -0.2, 0.75]}, "assembly": on_top}],
+        environment=[table(size=(2.0, 2.0, 0.04), z=0.72)], rate_hz=60, duration_s=4.0,
+        noise={"seed": seed, "position_std": 0.0005, "rotation_std_deg": 0.1},
+        right_hand=[{"t": 0.0, "position": [0.3, -0.4, 0.75], "grip": False},
+                    {"t": 0.2, "grip": True}, {"t": 0.8, "position": [0.0, 0.0, 0.7516]},
+                    {"t": 1.0, "grip": False}, {"t": 1.3, "position": [0.3, -0.2, 0.75]},
+                    {"t": 1.5, "grip": True}, {"t": 2.0, "position": [0.08, 0.08, 0.7516]},
+                    {"t": 2.2, "grip": False}, {"t": 2.5, "position": [0.3, 0.3, 1.3]}])
+    doc["base"] = {"name": "sheet", "shape": {"type": "box", "size": [0.3, 0.3, 0.0015]},
+                   "hand_from_base": {"position": [0, 0, -0.1]}}
+    doc["tracker"]["devices"]["left_hand"] = [
+        {"t": 0.0, "position": [0, 0, 0.84075], "grip": True},
+        {"t": 3.0, "position": [0, 0, 0.84075]}, {"t": 3.5, "position": [0, 0, 1.04075]}]
+    records = run_records(doc)
+    assert not [e for r in records for e in r.events if e.cause == "hit_environment"]
+    assert all(p.mode == "ONBASESTATIC" and p.position[2] > 0.94 for p in records[-1].parts)
+
+
+def test_a_part_let_go_on_a_base_held_in_the_table_stays_there_and_is_said_to(tmp_path):
+    """A review: a block let go on a plate the hand holds 2 cm in the table rode inside it
+    and, lifted, was stopped by the table's top from inside, 10 mm deep, with a warning of a
+    face 180 degrees from level. Let go there, it stays there (STATIC, as a part let go
+    inside the table does), and vade-record says it is inside the table."""
+    from vade_replay.replay import record
+    doc = _lowered_plate()
+    # The plate's top 2 cm under the table's (the hand at 0.81 - 0.09 = 0.72) from the start.
+    doc["tracker"]["devices"]["left_hand"] = [
+        {"t": 0.0, "position": [0, 0, 0.81], "grip": True}, {"t": 2.0, "position": [0, 0, 0.81]},
+        {"t": 2.5, "position": [0, 0, 1.0]}]
+    doc["tracker"]["devices"]["right_hand"][2]["position"][2] = 0.742  # on the plate's top
+    summary = record(make_session(doc), tmp_path / "in.mcap")
+    assert summary.transitions_by_edge.get("ONBASESTATIC->STATIC") == 1 \
+        or summary.transitions_by_edge.get("ONBASESLIDE->STATIC") == 1
+    (said,) = [w for w in summary.warnings if "wholly inside table" in w]
+    assert "stopped wholly inside table, where it stays" in said
+    assert not [w for w in summary.warnings if "degrees from level" in w]

@@ -1400,14 +1400,20 @@ def stopped_on_a_wall(scene: Scene, collision: CollisionWorld, record: FrameReco
         if snap is None or index is None or snap.mode != Mode.STATIC.value:
             continue
         counters = dict(collision.stats)
-        normal = collision.environment_normal(
-            event.part, Pose(snap.position, snap.rotation_xyzw), index)
+        pose = Pose(snap.position, snap.rotation_xyzw)
+        normal = collision.environment_normal(event.part, pose, index)
+        inside = normal is None and collision.inside_environment(event.part, pose, (index,)) >= 0
         collision.stats.update(counters)
-        if normal is not None and sp.dot(normal, up) <= _WALL_COS:
+        if inside:
+            # (Let go on a base the hand held in the table: it stays there, inside it.)
+            out.append(f"frame {record.frame} (t = {t:.3f} s): {event.part} stopped wholly "
+                       f"inside {event.other}, where it stays, STATIC, until a hand moves it "
+                       "(let go there, or on a base held in it)")
+        elif normal is not None and sp.dot(normal, up) <= _WALL_COS:
             steep = math.degrees(math.acos(max(-1.0, min(1.0, sp.dot(normal, up)))))
             out.append(f"frame {record.frame} (t = {t:.3f} s): {event.part} stopped on "
                        f"{event.other} at a face {steep:.0f} degrees from level, which cannot "
-                       "hold it up: a flying part stops wherever it touches the table (the "
+                       "hold it up: a part stops wherever it touches the table (the "
                        "paper's rule), so it stays there, STATIC, until a hand moves it")
     return out
 

@@ -144,9 +144,10 @@ class Physics:
     # base until then, as before 2026-11-23 (a block let go against a wall fell along it
     # through the plate below).
     flight_grace: str = "touched"
-    # every_part: a part on the base part (resting or moving on it) that the base, or its
-    # own move, brings within the contact tolerance of the table or another environment
-    # object is stopped there (STATIC, hit_environment), as a flying part is; the base
+    # every_part: a part on the base part (resting, or moving on a plane of it) that the
+    # base, or its own move, takes more than 2 mm into the table or another environment
+    # object is stopped there (STATIC, hit_environment, lifted out onto it), as a flying
+    # part is (one on an axis constraint goes where the base takes it); the base
     # part, which follows the hand, goes on through; and a part let go wholly inside one
     # (pushed in by a hand) is let go on it, where it is. flying: only flying parts meet
     # the environment, from outside, as before this key (a physics trial: a block on a

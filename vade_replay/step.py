@@ -155,8 +155,8 @@ def step(scene: Scene, collision: CollisionWorld, state: WorldState,
     _check_resting_on_base(f)
     _move_on_base(f)
     _carry_with_base(f)
-    _meet_environment(f, state.parts)
     _releases(f, state)
+    _meet_environment(f, state.parts)
     _grabs(f, state)
     parts = tuple(f.parts)
     grips = f.grips  # _read_hands sets both hands (LEFT < RIGHT) and every tool
@@ -1553,71 +1553,133 @@ def _carry_with_base(f: _Frame) -> None:
 
 
 def _meet_environment(f: _Frame, before: tuple[PartState, ...]) -> None:
-    """Parts on the base part (resting or moving on it) that the base, or their own move,
-    brought within the contact tolerance of the table or another environment object this
-    frame: stopped there (STATIC, ``hit_environment``) at the first such instant, as a
-    flying part is (``physics.environment_contact``). The base part follows the hand and
-    goes on through; the parts on it do not (a physics trial: a block on a plate lowered
-    into the table rode 3 cm into it, slid off inside it and fell through it, there being
-    no contact from inside a mesh).
+    """Parts on the base part (resting, or moving on a plane) that the base, or their own
+    move, takes into the table or another environment object this frame deeper than
+    ``_ENV_ALLOWANCE_M``: stopped at the first such instant, STATIC (``hit_environment``),
+    moved up out of it by that allowance (``physics.environment_contact``). The base part
+    follows the hand and goes on through; the parts on it do not (a physics trial: a block
+    on a plate lowered into the table rode 3 cm into it and through it, slid off below it
+    and fell for ever: nothing meets a part from inside a mesh).
+
+    The allowance is a tracker's noise: a thin base the hand rests on the table dips into
+    it by that much and keeps its parts (a review: a 1.5 mm sheet on the table left parts
+    behind, its noise taking them to the table's face). A part on an axis constraint (a pin
+    in its bore, a gear on its shaft) is not stopped: the base guides it where it goes (a
+    review: a pin sliding down the bore of a plate lying on the table was stopped at the
+    table, STATIC, and never placed; a block of its slide by the table is not modelled).
 
     The frame's path of a part: from its pose at the frame's start to its pose at the end,
-    linear and slerp (the arc of a part on a turning base lies off that chord by its
-    sagitta, r phi^2 / 8: 0.04 mm at 0.3 m from a base turning 2 rad/s at 60 Hz).
-    Conservative advancement on it: no point of the part moves further than ``reach``
-    over the frame, so a step of (d - tol/2) / reach of the frame passes through nothing.
-    A part that did not move (resting on a base at rest) is not asked; one whose sphere
-    stays clear of every object's box is asked nothing more (one bounding test)."""
+    its box's centre linear, its rotation slerp (the arc of a part on a turning base lies
+    off that chord by its
+    sagitta, r phi^2 / 8: 0.04 mm at 0.3 m from a base turning 2 rad/s at 60 Hz), lifted
+    by the allowance (against gravity). Conservative advancement on it, from its box's
+    centre: no point moves further than ``reach`` over the frame, so a step of (d - tol/2)
+    / reach passes through nothing (at least half the tolerance: met, it is not inside);
+    out of its budget, the frame's end decides. One that came onto the base this frame
+    (let go or landed) is asked from where it was at the frame's start (the chord standing
+    for its flight or hand and the base's carry), and whether it lies wholly inside one at
+    the end (let go on a base the hand holds in the table: it stays there, as a part let go
+    inside the table does). A part that did not move is not asked; one whose
+    sphere stays clear of every object's box is asked nothing more (one test)."""
     physics = f.scene.physics
     if physics.environment_contact != "every_part" or f.base_pose is None \
             or not f.scene.environment:
         return
     tol = physics.contact_tolerance
+    g = physics.gravity
+    g_norm = math.sqrt(g[0] * g[0] + g[1] * g[1] + g[2] * g[2])
+    allowance = _ENV_ALLOWANCE_M if g_norm > 0.0 else 0.0
+    lift = sp.scale(g, -allowance / g_norm) if g_norm > 0.0 else sp.ZERO3
     for index in f.awake:
         part = f.parts[index]
         if part.mode is not ONBASESTATIC and part.mode is not ONBASESLIDE:
             continue
+        motion = part.motion
+        body = f.scene.parts[index]
+        if isinstance(motion, OnBase) and cast(Assembly, body.assembly).mates[
+                motion.mate].kind == "axis":
+            continue  # guided by the base: where it goes, the part goes
         old = before[index]
-        # From the frame's start where it was on the base then; else (let go onto it, or
-        # landed on it, this frame) where it is at the frame's end.
+        # From where it was at the frame's start: on the base, in the hand that let it go
+        # onto it, or flying onto it (the chord stands for the flight and the base's carry).
         on_before = old.mode is ONBASESTATIC or old.mode is ONBASESLIDE
-        p0 = old.pose if on_before else part.pose
+        p0 = old.pose
         p1 = part.pose
         if on_before and p0.position == p1.position and p0.rotation == p1.rotation:
             continue  # nothing moved: nothing new to meet
-        body = f.scene.parts[index]
-        r = body.reach_from_origin
-        reach = sp.norm(sp.sub(p1.position, p0.position)) \
-            + _angle_bound(p0.rotation, p1.rotation) * r
-        # A sphere about its frame's origin at the frame's end, widened by that: clear of
+        lo, hi = body.bbox_min, body.bbox_max
+        centre = (0.5 * (lo[0] + hi[0]), 0.5 * (lo[1] + hi[1]), 0.5 * (lo[2] + hi[2]))
+        ex, ey, ez = hi[0] - centre[0], hi[1] - centre[1], hi[2] - centre[2]
+        rho = math.sqrt(ex * ex + ey * ey + ez * ez)  # every point of it within this
+        c1 = sp.add(p1.apply(centre), lift)
+        reach = sp.norm(sp.sub(c1, sp.add(p0.apply(centre), lift))) \
+            + _angle_bound(p0.rotation, p1.rotation) * rho
+        # A sphere about its box's centre at the frame's end, widened by that: clear of
         # every object's box, done (a part on a base held above the table: one test).
-        if not f.collision.environment_within(p1.position, r + reach + tol):
+        if not f.collision.environment_within(c1, rho + reach + tol):
             continue
-        lo, hi = _world_box(body, p1)
-        near = f.collision.environment_near_box(sp.sub(lo, (reach + tol,) * 3),
-                                                sp.add(hi, (reach + tol,) * 3))
+        box_lo, box_hi = _world_box(body, p1)
+        widen = reach + tol
+        near = f.collision.environment_near_box(
+            (box_lo[0] + lift[0] - widen, box_lo[1] + lift[1] - widen,
+             box_lo[2] + lift[2] - widen),
+            (box_hi[0] + lift[0] + widen, box_hi[1] + lift[1] + widen,
+             box_hi[2] + lift[2] + widen))
         if not near:
             continue
-        lam = 0.0 if on_before else 1.0
-        hit = -1
-        pose = p1
-        for _ in range(_CA_MAX_ITERATIONS):
-            pose = p1 if lam >= 1.0 else sp.Pose(
-                sp.add(p0.position, sp.scale(sp.sub(p1.position, p0.position), lam)),
-                sp.slerp(p0.rotation, p1.rotation, lam))
-            d, which = f.collision.distance_to_environment(part.name, pose, near)
-            if d <= tol:
-                hit = which
-                break
-            if lam >= 1.0 or reach <= 0.0:
-                break
-            lam = min(1.0, lam + max((d - 0.5 * tol) / reach, 1e-9))
-        if hit < 0:
+        hit = _first_contact(f, part.name, p0, p1, centre, lift, near, reach,
+                             not on_before)
+        if hit is None:
             continue
+        lam, pose, which = hit
         t_c = f.t_prev_ns + int(lam * (f.t_ns - f.t_prev_ns)) if lam < 1.0 else f.t_ns
         f.events.append(ContactMade(f.inputs.frame, part.name, Cause.HIT_ENVIRONMENT.value,
-                                    f.collision.environment_name(hit), t_c))
+                                    f.collision.environment_name(which), t_c))
         f.change_mode(index, PartState(part.name, STATIC, pose), Cause.HIT_ENVIRONMENT)
+
+
+# How deep a part on the base may go into the table before the table stops it (m): a
+# tracker's noise, as ``_OVERLAP_REACH_M`` is for a part let go in the base.
+_ENV_ALLOWANCE_M: Final = 0.002
+
+
+def _first_contact(f: _Frame, part: str, p0: sp.Pose, p1: sp.Pose, centre: sp.Vec3,
+                   lift: sp.Vec3, near: tuple[int, ...], reach: float, arrived: bool
+                   ) -> tuple[float, sp.Pose, int] | None:
+    """``_meet_environment``'s advancement: the first fraction of the frame at which the
+    part, on the chord from ``p0`` to ``p1`` (its box's ``centre`` linear, its rotation
+    slerp) lifted by ``lift``, is within the contact tolerance of one of ``near`` (or, one
+    that ``arrived`` on the base this frame, lies wholly inside one at the frame's end),
+    with that pose and the object; None if it is not."""
+    tol = f.scene.physics.contact_tolerance
+    c0, c1 = p0.apply(centre), p1.apply(centre)
+
+    def at(lam: float) -> sp.Pose:
+        if lam >= 1.0:
+            return sp.Pose(sp.add(p1.position, lift), p1.rotation)
+        q = sp.slerp(p0.rotation, p1.rotation, lam)
+        c = sp.add(c0, sp.scale(sp.sub(c1, c0), lam))
+        return sp.Pose(sp.add(sp.sub(c, sp.quat_rotate(q, centre)), lift), q)
+    lam = 0.0
+    for _ in range(_CA_MAX_ITERATIONS):
+        pose = at(lam)
+        d, which = f.collision.distance_to_environment(part, pose, near)
+        if d <= tol:
+            # (Each step leaves it at least half the tolerance from everything: met within
+            # the tolerance, it is not inside.)
+            return lam, pose, which
+        if lam >= 1.0:
+            if arrived:
+                # Come onto the base this frame: wholly inside one (nested meshes are at a
+                # distance; let go on a base held in the table) is where it stays.
+                inside = f.collision.inside_environment(part, pose, near)
+                if inside >= 0:
+                    return lam, pose, inside
+            return None
+        lam = min(1.0, lam + (d - 0.5 * tol) / reach) if reach > 0.0 else 1.0
+    pose = at(1.0)  # (out of budget: the frame's end decides)
+    d, which = f.collision.distance_to_environment(part, pose, near)
+    return (1.0, pose, which) if d <= tol else None
 
 
 def _angle_bound(a: sp.Quat, b: sp.Quat) -> float:
