@@ -1401,8 +1401,9 @@ def stopped_on_a_wall(scene: Scene, collision: CollisionWorld, record: FrameReco
             continue
         counters = dict(collision.stats)
         pose = Pose(snap.position, snap.rotation_xyzw)
-        normal = collision.environment_normal(event.part, pose, index)
-        inside = normal is None and collision.inside_environment(event.part, pose, (index,)) >= 0
+        # (Nested in it, the two are at a distance: whether it is inside is asked first.)
+        inside = collision.inside_environment(event.part, pose, (index,)) >= 0
+        normal = None if inside else collision.environment_normal(event.part, pose, index)
         collision.stats.update(counters)
         if inside:
             # (Let go on a base the hand held in the table: it stays there, inside it.)

@@ -1660,23 +1660,30 @@ def _first_contact(f: _Frame, part: str, p0: sp.Pose, p1: sp.Pose, centre: sp.Ve
         q = sp.slerp(p0.rotation, p1.rotation, lam)
         c = sp.add(c0, sp.scale(sp.sub(c1, c0), lam))
         return sp.Pose(sp.add(sp.sub(c, sp.quat_rotate(q, centre)), lift), q)
+    unlifted = sp.scale(lift, -1.0)
     lam = 0.0
     for _ in range(_CA_MAX_ITERATIONS):
         pose = at(lam)
         d, which = f.collision.distance_to_environment(part, pose, near)
+        step = d - 0.5 * tol
         if d <= tol:
-            # (Each step leaves it at least half the tolerance from everything: met within
-            # the tolerance, it is not inside.)
-            return lam, pose, which
+            # Lifted, it touches one; where it is, it must too (a review: a part 1 mm under
+            # a shelf, lifted into it, was stopped for nothing). (Each step leaves it at
+            # least half the tolerance from what it meets: met, it is not inside.)
+            real = sp.Pose(sp.add(pose.position, unlifted), pose.rotation)
+            d_real, _ = f.collision.distance_to_environment(part, real, (which,))
+            if d_real <= tol or f.collision.inside_environment(part, real, (which,)) >= 0:
+                return lam, pose, which  # (a part thinner than the allowance: wholly in it)
+            step = d_real - 0.5 * tol
         if lam >= 1.0:
             if arrived:
                 # Come onto the base this frame: wholly inside one (nested meshes are at a
                 # distance; let go on a base held in the table) is where it stays.
-                inside = f.collision.inside_environment(part, pose, near)
+                inside = f.collision.inside_environment(part, p1, near)  # (where it is)
                 if inside >= 0:
                     return lam, pose, inside
             return None
-        lam = min(1.0, lam + (d - 0.5 * tol) / reach) if reach > 0.0 else 1.0
+        lam = min(1.0, lam + step / reach) if reach > 0.0 else 1.0
     pose = at(1.0)  # (out of budget: the frame's end decides)
     d, which = f.collision.distance_to_environment(part, pose, near)
     return (1.0, pose, which) if d <= tol else None
