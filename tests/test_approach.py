@@ -49,25 +49,11 @@ def _bracket(files: dict, name: str, physics: dict, children: list, part: str,
     """A session (mm) of a bracket (a 10 mm plate and ``children``) and a mesh part
     ``part`` (``{part}.stl`` or ``.ply`` in ``files``) on an axis along z through
     ``base_point``, to be placed at ``final``; the part let go beside it."""
-    shape = next(f for f in files if f.startswith(part + "."))
-    doc = {
-        "format": "vade-session/1", "name": name, "units": "mm", "physics": physics,
-        "base": {"name": "bracket", "shape": {"type": "compound", "children": [
-            {"type": "box", "size": [120, 80, 10]}, *children]}},
-        "parts": [{"name": part, "density": 7800, "pose": {"position": [250, 0, 760]},
-                   "shape": {"type": "mesh", "file": shape},
-                   "assembly": {"constraints": [{
-                       "type": "axis", "name": f"{part}_in_bore", "radius": 5,
-                       "part": {"point": [0, 0, 0], "direction": [0, 0, 1]},
-                       "base": {"point": base_point, "direction": [0, 0, 1]}}],
-                       "final_pose": {"position": final},
-                       "final_tolerance": {"distance": 1, "angle_deg": 180}}}],
-        "environment": [{"name": "table", "shape": {"type": "box", "size": [1200, 800, 40]},
-                         "pose": {"position": [0, 0, 720]}}],
-        "tracker": {"rate_hz": 60, "duration_s": 0.1, "devices": {
-            "left_hand": [{"t": 0, "position": [0, 200, 950], "grip": True}],
-            "right_hand": [{"t": 0.0, "position": [250, 0, 760], "grip": False}]}}}
-    return make_session(doc, files)
+    base = {"name": "bracket", "shape": {"type": "compound", "children": [
+        {"type": "box", "size": [120, 80, 10]}, *children]}}
+    return _session_on_an_axis(name, base, part, files, 5, base_point, final, physics,
+                               constraint=f"{part}_in_bore",
+                               shape=next(f for f in files if f.startswith(part + ".")))
 
 
 def _peg_in_boss(peg_sections: int, bore_sections: int, physics: dict | None = None,
@@ -316,17 +302,20 @@ def _revolved(profile, sections: int = 256) -> bytes:
 
 
 def _session_on_an_axis(name: str, base: dict, part: str, files: dict, radius: float,
-                        base_point: list, final: list, physics: dict):
-    """A session (mm) of the base ``base`` and the mesh part ``part`` (``{part}.ply``) on
-    an axis along z through ``base_point`` (``radius``), to be placed at ``final``; the
-    part let go beside it."""
+                        base_point: list, final: list, physics: dict, *,
+                        constraint: str | None = None, shape: str | None = None):
+    """A session (mm) of the base ``base`` and the mesh part ``part`` (``{part}.ply``, or
+    the file ``shape``) on an axis along z through ``base_point`` (``radius``; named
+    ``{part}_on_axis``, or ``constraint``), to be placed at ``final``; the part let go
+    beside it."""
     doc = {
         "format": "vade-session/1", "name": name, "units": "mm",
-        "physics": {"gravity": [0, 0, -9810], **physics}, "base": base,
+        "physics": physics, "base": base,
         "parts": [{"name": part, "density": 7800, "pose": {"position": [250, 0, 760]},
-                   "shape": {"type": "mesh", "file": f"{part}.ply"},
+                   "shape": {"type": "mesh", "file": shape or f"{part}.ply"},
                    "assembly": {"constraints": [{
-                       "type": "axis", "name": f"{part}_on_axis", "radius": radius,
+                       "type": "axis", "name": constraint or f"{part}_on_axis",
+                       "radius": radius,
                        "part": {"point": [0, 0, 0], "direction": [0, 0, 1]},
                        "base": {"point": base_point, "direction": [0, 0, 1]}}],
                        "final_pose": {"position": final},
@@ -355,7 +344,8 @@ def test_a_spacer_down_a_long_journal_inside_its_bore_is_not_stopped_short():
         {"type": "box", "size": [120, 80, 10]},
         {"type": "mesh", "file": "shaft.ply", "pose": {"position": [0, 0, 5]}}]}}
     session = _session_on_an_axis("spacer_on_journal", base, "spacer", files, 5,
-                                  [0, 0, 5], [0, 0, 5], {"contact_tolerance": 0.01})
+                                  [0, 0, 5], [0, 0, 5],
+                                  {"gravity": [0, 0, -9810], "contact_tolerance": 0.01})
     (warnings, passed, asked), fallbacks = _warnings_and_fallbacks(session)
     assert not any("into the base" in w or "passes the base" in w for w in warnings), warnings
     assert any("no face of spacer lies within" in w for w in warnings)
@@ -380,7 +370,7 @@ def _shouldered_pin_from_below(counterbore_mm: float):
                                        (6.05, d), (6.05, 0)])}
     base = {"name": "housing", "shape": {"type": "mesh", "file": "housing.ply"}}
     return _session_on_an_axis("pin_from_below", base, "pin", files, 5, [0, 0, 0],
-                               [0, 0, d], {"coaxial_fit": "faces"})
+                               [0, 0, d], {"gravity": [0, 0, -9810], "coaxial_fit": "faces"})
 
 
 @pytest.mark.parametrize("counterbore_mm, said", [
