@@ -1383,7 +1383,8 @@ def stopped_on_a_wall(scene: Scene, collision: CollisionWorld, record: FrameReco
     them up: steeper than 84 degrees or facing down (the base's rule for what holds a
     part). The paper's rule stops a part at the table wherever it touches it, STATIC, so a
     part thrown at the table's side hangs on it (a physics trial: a cube stuck to the
-    side of the table, a "drop" no study would count as one); said, not changed."""
+    side of the table, a "drop" no study would count as one); said, not changed. And
+    parts stopped wholly inside one (let go there, or on a base the hand held in it)."""
     out: list[str] = []
     g = scene.physics.gravity
     norm = math.sqrt(sp.dot(g, g))
