@@ -348,6 +348,13 @@ def _refuse_replacing_other(path: str, option: str) -> None:
         return  # unreadable: writing it says why (ensure_writable)
     text = head[3:] if head.startswith(b"\xef\xbb\xbf") else head
     if text.startswith(_OUTPUT_STARTS.get(option, _TABLE_STARTS)):
+        other = _other_table(where, option)
+        if other is not None:
+            # Another of vade-replay's tables (a researcher's trial: --events over the
+            # study's --csv table replaced it without a word).
+            raise ConfigError(f"{path} holds vade-replay's {other} table, which this table "
+                              "would replace: pass --force to replace it, or choose another "
+                              "file", field=option)
         return
     recording = head.startswith(MCAP_MAGIC)
     session = text.lstrip(b" \t\r\n").startswith((b"{", b"["))
@@ -356,6 +363,27 @@ def _refuse_replacing_other(path: str, option: str) -> None:
     kind = "rerun review" if option == "--rerun" else "table vade-replay wrote"
     raise ConfigError(f"{path} holds {what}, not a {kind}; pass --force to replace it, or "
                       "choose another file", field=option)
+
+
+def _headers() -> dict[str, str]:
+    """Each table option's header line, as vade-replay writes it."""
+    return {"--csv": ",".join(ANALYSIS_COLUMNS),
+            **{f"--{kind}": ",".join(columns) for kind, (columns, _) in FRAME_TABLES.items()}}
+
+
+def _other_table(where: Path, option: str) -> str | None:
+    """The option whose table (by its header, as written) the file holds, where that is
+    another option's than ``option``; None for its own, an older one's or any other."""
+    try:
+        with open(where, "rb") as stream:
+            first = stream.read(8192).split(b"\n", 1)[0]
+    except OSError:
+        return None
+    line = first.decode("utf-8-sig", "replace").rstrip("\r")
+    for kind, header in _headers().items():
+        if line == header and kind != option:
+            return kind
+    return None
 
 
 def _where(path: str) -> Path:

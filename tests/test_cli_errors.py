@@ -1043,6 +1043,28 @@ def test_a_table_does_not_replace_a_tracker_log_a_mesh_or_a_picture(tmp_path):
     assert resaved.read_text().startswith("recording,session,")
 
 
+def test_a_table_does_not_replace_another_of_vade_replays_tables_without_force(tmp_path):
+    """A researcher's trial: ``--events out/study.csv`` replaced the study's --csv table with
+    an events table, without a word. Another kind of vade-replay table is refused, exit 2,
+    the file untouched, as any file vade-replay did not write is; the same kind is
+    replaced (a study run again), and --force replaces the other."""
+    golden = str(RECORDINGS / "drop_on_table.mcap")
+    study = tmp_path / "study.csv"
+    assert run_cli("vade-replay", golden, "--csv", str(study)).returncode == 0
+    before = study.read_bytes()
+    _assert_clean_error(run_cli("vade-replay", golden, "--events", str(study)),
+                        f"--events: {study} holds vade-replay's --csv table, which this table "
+                        "would replace", "--force")
+    assert study.read_bytes() == before
+    assert run_cli("vade-replay", golden, "--csv", str(study)).returncode == 0
+    assert run_cli("vade-replay", golden, "--events", str(study), "--force").returncode == 0
+    assert study.read_text().startswith("recording,frame,time_s,kind,")
+    poses = tmp_path / "poses.csv"
+    assert run_cli("vade-replay", golden, "--poses", str(poses)).returncode == 0
+    _assert_clean_error(run_cli("vade-replay", golden, "--tracker", str(poses)),
+                        "holds vade-replay's --poses table")
+
+
 def test_a_bad_physics_set_writes_nothing_and_says_so_once(tmp_path):
     """A researcher's trial: a typo in --set over a study replaced a good study table with
     a row of errors per recording, and printed its message once a recording."""
