@@ -66,17 +66,21 @@ def stale(session: session_mod.Session, recording: Recording) -> str | None:
 def _where_changed(was: bytes | None, now: bytes | None) -> str:
     """Where a file the session names first differs from the golden's: its line, for a
     text file (a tracker log: a researcher's trial was told only that the log changed),
-    or its byte; nothing where one of them is missing."""
+    or its byte; nothing where one of them is missing. Each line as its bytes read (an end
+    of line changed to CRLF shows as ``\\r``), and a file that ends before it as ending."""
     if was is None or now is None:
         return " (not in the golden)" if was is None else " (missing now)"
     at = next((i for i, (a, b) in enumerate(zip(was, now)) if a != b), min(len(was), len(now)))
     if b"\0" in was[:4096] or b"\0" in now[:4096]:
-        return f" (first at byte {at}; {len(was)} bytes in the golden, {len(now)} now)"
+        return f": first at byte {at}, {len(was)} bytes in the golden and {len(now)} now"
     line = was[:at].count(b"\n") + 1
-    old_line = was.split(b"\n")[line - 1] if line - 1 < len(was.split(b"\n")) else b""
-    new_line = now.split(b"\n")[line - 1] if line - 1 < len(now.split(b"\n")) else b""
-    show = lambda text: text.decode("utf-8", "replace").rstrip("\r")[:80]  # noqa: E731
-    return f" (first at line {line}: {show(old_line)!r} in the golden, {show(new_line)!r} now)"
+
+    def shown(data: bytes) -> str:
+        lines = data.split(b"\n")
+        if line - 1 >= len(lines) or (line == len(lines) and not lines[-1]):
+            return f"it ends before it ({line - 1} lines)"
+        return repr(lines[line - 1].decode("utf-8", "replace")[:80])
+    return f": first at line {line}, {shown(was)} in the golden and {shown(now)} now"
 
 
 def _check(path: Path, golden: Path, tolerance: Tolerance | None = None) -> tuple[str, str]:

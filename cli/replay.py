@@ -7,6 +7,7 @@ import csv
 import difflib
 import json
 import os
+import re
 import shutil
 import signal
 import tempfile
@@ -285,15 +286,10 @@ def _check_part_overrides(recordings: list[str], overrides: dict[str, str]) -> N
                 # not in sight), with the recordings it is of (a study's many of one).
                 said = [f"{paths[0]}" + (f" and {len(paths) - 1} more" if len(paths) > 1
                                          else "") + f": {why}" for why, paths in whys.items()]
-                listed = "; ".join(said[:_WHYS_LISTED]) + (
-                    f"; {len(said) - _WHYS_LISTED} more reasons" if len(said) > _WHYS_LISTED
-                    else "")
+                listed = "; ".join(said)
                 raise ConfigError(f"none of the {len(recordings)} recordings' sessions can "
                                   f"take it ({listed})", field=f"--set {key}")
 
-
-# How many recordings' reasons a --set none of them can take names before "N more".
-_WHYS_LISTED = 4
 
 
 # Where the run's own lines go: standard output, unless a table is written there (``-``).
@@ -365,23 +361,32 @@ def _refuse_replacing_other(path: str, option: str) -> None:
                       "choose another file", field=option)
 
 
-def _headers() -> dict[str, str]:
-    """Each table option's header line, as vade-replay writes it."""
-    return {"--csv": ",".join(ANALYSIS_COLUMNS),
-            **{f"--{kind}": ",".join(columns) for kind, (columns, _) in FRAME_TABLES.items()}}
+# How many of a table's first columns tell its kind: its own in every version since each
+# began (columns are only ever added at the end), and in no other's.
+_KIND_COLUMNS = 4
+
+
+def _headers() -> dict[str, tuple[str, ...]]:
+    """Each table option's first columns, as vade-replay writes them."""
+    return {"--csv": ANALYSIS_COLUMNS[:_KIND_COLUMNS],
+            **{f"--{kind}": columns[:_KIND_COLUMNS]
+               for kind, (columns, _) in FRAME_TABLES.items()}}
 
 
 def _other_table(where: Path, option: str) -> str | None:
-    """The option whose table (by its header, as written) the file holds, where that is
-    another option's than ``option``; None for its own, an older one's or any other."""
+    """The option whose table the file holds, by its header's first columns (a table an
+    older version wrote, with fewer columns at the end, or one a spreadsheet saved again,
+    quoted or with semicolons, too: a review), where that is another option's than
+    ``option``; None for its own or any other file."""
     try:
         with open(where, "rb") as stream:
             first = stream.read(8192).split(b"\n", 1)[0]
     except OSError:
         return None
     line = first.decode("utf-8-sig", "replace").rstrip("\r")
-    for kind, header in _headers().items():
-        if line == header and kind != option:
+    names = tuple(cell.strip().strip('"') for cell in re.split(r"[,;\t]", line))
+    for kind, columns in _headers().items():
+        if names[:_KIND_COLUMNS] == columns and kind != option:
             return kind
     return None
 

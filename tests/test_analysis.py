@@ -491,6 +491,12 @@ def test_a_studys_what_if_of_a_part_applies_where_the_session_has_it(tmp_path):
                            "session (its parts: gear))\n")
     # A study's many recordings of one session: a reason once, with how many it is of.
     tilted = str(RECORDINGS / "gear_tilted_shaft.mcap")
+    # Every reason, none left out (a review: "4 more reasons" hid the part names sought).
+    every = run_cli("vade-replay", *sorted(str(p) for p in RECORDINGS.glob("*.mcap")),
+                    "--set", "parts.spacer.mass=1")
+    assert every.returncode == 2 and "more reasons" not in every.stderr
+    for name in ("peg", "gear", "ring", "block", "sleeve", "cylinder", "box"):
+        assert f"(its parts: {name}" in every.stderr or f", {name}" in every.stderr, name
     many = run_cli("vade-replay", gear, sleeve, tilted, "--set", "parts.spacer.mass=1")
     assert many.returncode == 2 and f"({gear} and 1 more: no part 'spacer' in this session " \
         "(its parts: gear); " in many.stderr

@@ -43,12 +43,13 @@ def test_session_not_json(tmp_path):
 def test_a_tracker_log_given_for_its_session_says_what_it_is(tmp_path):
     """A researcher's trial: ``vade-record log.csv`` (the log, not its session) read "not
     valid JSON: Expecting value". It says it is a tracker log and where one goes."""
-    log = tmp_path / "p01.csv"
-    log.write_text("time,device,x,y,z,q0,q1,q2,q3,grip\n0.0,right_hand,0,0,1,0,0,0,1,0\n")
-    result = run_cli("vade-record", str(log), "-o", str(tmp_path / "o.mcap"))
-    _assert_clean_error(result, f"{log}: this is a tracker log (CSV), not a session file",
-                        "tracker.csv")
-    assert not (tmp_path / "o.mcap").exists()
+    for header in ("time,device,x,y,z,q0,q1,q2,q3,grip", "t;device;x;y;z;q0;q1;q2;q3;grip"):
+        log = tmp_path / "p01.csv"
+        log.write_text(header + "\n0.0,right_hand,0,0,1,0,0,0,1,0\n")
+        result = run_cli("vade-record", str(log), "-o", str(tmp_path / "o.mcap"))
+        _assert_clean_error(result, f"{log}: this is a tracker log (CSV), not a session file",
+                            '("tracker": {"csv": "p01.csv", ...})')
+        assert not (tmp_path / "o.mcap").exists()
 
 
 @pytest.mark.parametrize("mutate, field", [
@@ -1063,6 +1064,15 @@ def test_a_table_does_not_replace_another_of_vade_replays_tables_without_force(t
     assert run_cli("vade-replay", golden, "--poses", str(poses)).returncode == 0
     _assert_clean_error(run_cli("vade-replay", golden, "--tracker", str(poses)),
                         "holds vade-replay's --poses table")
+    # A study table an older version wrote (fewer columns at its end: a review), or a
+    # spreadsheet saved again (quoted, semicolons), is the --csv table too.
+    for header in (b"recording,session,match,first_divergence_frame,frames\n",
+                   b'\xef\xbb\xbf"recording";"session";"match";"first_divergence_frame"\r\n'):
+        older = tmp_path / "older.csv"
+        older.write_bytes(header + b"a.mcap,s,True,,1\n")
+        _assert_clean_error(run_cli("vade-replay", golden, "--events", str(older)),
+                            "holds vade-replay's --csv table")
+        assert older.read_bytes().startswith(header)
 
 
 def test_a_bad_physics_set_writes_nothing_and_says_so_once(tmp_path):
@@ -1365,6 +1375,21 @@ def test_a_session_in_mm_written_as_metres_is_warned_of_by_its_own_shapes(tmp_pa
     assert len(said) == 1 and "40 x 40 x 80 m across" in said[0] \
         and 'another unit than its "units": "m"?' in said[0], result.stderr
     assert lines.index(said[0]) == 0  # before what it causes
+
+
+def test_an_environment_object_in_another_unit_is_warned_of(tmp_path):
+    """A review: a table of 1200 x 800 x 40 in a session in "m" (mm meant) was not warned
+    of (only parts and the base were). An object over 50 m across is; a 1.2 m table not."""
+    for size, warned in (([1200, 800, 40], True), ([1.2, 0.8, 0.04], False)):
+        doc = _doc()
+        doc["environment"] = [{"name": "table", "shape": {"type": "box", "size": size},
+                               "pose": {"position": [0, 0, 0.72]}}]
+        result = run_cli("vade-record", str(_write(tmp_path, doc)), "-o",
+                         str(tmp_path / "o.mcap"), "--force")
+        said = [line for line in result.stderr.splitlines() if "environment[0].shape" in line]
+        assert bool(said) == warned, result.stderr
+        if warned:
+            assert "table is 1.2e+03 x 800 x 40 m across" in said[0]
 
 
 def test_a_constraint_that_fits_no_mesh_drawn_in_millimetres_says_so(tmp_path):

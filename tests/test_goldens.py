@@ -358,9 +358,9 @@ def test_a_golden_whose_tracker_log_changed_names_the_log_and_takes_the_file_nam
     line = 1 + CSV[:CSV.index("2.000,right_hand")].count("\n")
     old_row = CSV.splitlines()[line - 1]
     assert (f"STALE: log.csv (named by {tmp_path / 'csvsess.json'}) changed since its golden "
-            "was made (file log.csv is not the one the golden was made with (first at line "
-            f"{line}: {old_row!r} in the golden, {old_row.replace('2.000', '2.500')!r} now))"
-            ) in result.stdout
+            "was made (file log.csv is not the one the golden was made with: first at line "
+            f"{line}, {old_row!r} in the golden and {old_row.replace('2.000', '2.500')!r} "
+            "now)") in result.stdout
 
 
 def test_a_folder_s_session_without_a_golden_is_named_by_its_own_fault(tmp_path):
@@ -440,10 +440,16 @@ def test_where_a_named_file_changed_is_said():
     the byte of a binary one (a mesh), or that it is new or gone."""
     from cli.goldens import _where_changed
     assert _where_changed(b"a\nb\nc\n", b"a\nB\nc\n") == (
-        " (first at line 2: 'b' in the golden, 'B' now)")
+        ": first at line 2, 'b' in the golden and 'B' now")
+    # A line added at the end, or lost there: the file said to end (a review: '' read as
+    # an empty line); an end of line turned CRLF shows its \r.
     assert _where_changed(b"a\nb\n", b"a\nb\nc\n") == (
-        " (first at line 3: '' in the golden, 'c' now)")
+        ": first at line 3, it ends before it (2 lines) in the golden and 'c' now")
+    assert _where_changed(b"a\nb\nc\n", b"a\nb\n") == (
+        ": first at line 3, 'c' in the golden and it ends before it (2 lines) now")
+    assert _where_changed(b"a\nb\n", b"a\r\nb\r\n") == (
+        ": first at line 1, 'a' in the golden and 'a\\r' now")
     assert _where_changed(b"solid\0\x01\x02", b"solid\0\x01\x03") == (
-        " (first at byte 7; 8 bytes in the golden, 8 now)")
+        ": first at byte 7, 8 bytes in the golden and 8 now")
     assert _where_changed(None, b"x") == " (not in the golden)"
     assert _where_changed(b"x", None) == " (missing now)"

@@ -1823,7 +1823,22 @@ def mesh_scale_warnings(scene: Scene, doc: dict | None) -> list[str]:
                        f"part of an assembly, with mesh children of no units: {named}: "
                        "drawn in millimetres? give each one's shape.units (its mass and "
                        "inertia follow its size)")
+    # An environment object (a table, a floor) over 50 m across: the same slip (a review: a
+    # table of 1200 x 800 x 40 in a session in "m" was not warned of).
+    f = UNIT_TO_M[units]
+    for i, (item, body) in enumerate(zip([e for e in doc.get("environment") or []
+                                          if isinstance(e, dict)], scene.environment)):
+        size = [body.bbox_max[k] - body.bbox_min[k] for k in range(3)]
+        if max(size) > _ENVIRONMENT_LARGEST_M:
+            across = " x ".join(f"{extent / f:.3g}" for extent in size)
+            out.append(f"environment[{i}].shape: {body.name} is {across} {units} across: "
+                       f"are the session's numbers in another unit than its \"units\": "
+                       f"\"{units}\"?")
     return out
+
+
+# An environment object larger than this across (m) is taken for a slip of units.
+_ENVIRONMENT_LARGEST_M = 50.0
 
 
 def body_count(faces: np.ndarray) -> int:

@@ -733,8 +733,9 @@ def parse(raw: bytes, files: dict[str, bytes], *, source: str,
 def _looks_like_a_tracker_log(raw: bytes) -> bool:
     """A CSV whose first line is a header naming a tracker log's columns (time, device)."""
     head = raw[:4096].decode("utf-8-sig", errors="replace").lstrip().split("\n", 1)[0]
-    names = {cell.strip().strip('"').lower() for cell in head.split(",")}
-    return len(names) >= 3 and "device" in names and any(n.startswith("time") for n in names)
+    names = {cell.strip().strip('"').lower() for cell in re.split(r"[,;\t]", head)}
+    return len(names) >= 3 and "device" in names \
+        and any(n == "t" or n.startswith("time") for n in names)
 
 
 def load(path: str | Path) -> Session:
@@ -757,8 +758,8 @@ def load(path: str | Path) -> Session:
         if _looks_like_a_tracker_log(raw):
             # (A researcher's trial: a log given for its session read "not valid JSON".)
             raise SessionError("this is a tracker log (CSV), not a session file: name it in "
-                               "a session's tracker.csv and record that session",
-                               file=str(path)) from None
+                               'a session file ("tracker": {"csv": "' + path.name + '", ...}) '
+                               "and record that session", file=str(path)) from None
         raise SessionError(f"not valid JSON: {exc}", file=str(path)) from None
     validate(doc, file=str(path))
     files = {}
