@@ -301,7 +301,6 @@ class _Fixed:
     lo: sp.Vec3
     hi: sp.Vec3
     body: Body
-    closed: bool  # a solid (every edge two triangles'): it has an inside to be in
 
 
 class CollisionWorld:
@@ -313,13 +312,13 @@ class CollisionWorld:
         self._bodies = {body.name: body for body in scene.parts}
         self._part_models: dict[str, fcl.BVHModel] = {}
         self._fixed: list[_Fixed] = []
+        self._solid: dict[int, bool] = {}  # (``inside_environment``)
         for body in scene.environment:
             pose = body.initial_pose
             world = np.array([pose.apply(tuple(v)) for v in body.vertices])
             obj = fcl.CollisionObject(_bvh(body), _transform(pose))
             self._fixed.append(_Fixed(body.name, obj, tuple(world.min(axis=0)),
-                                      tuple(world.max(axis=0)), body,
-                                      closed(np.asarray(body.faces))))
+                                      tuple(world.max(axis=0)), body))
         # The base's BVH and each constraint's (``_mate``) are built the first time they are
         # asked for too: a constraint no part comes near in a session costs nothing, nor
         # does the base of a session whose parts never meet it. (The same models as built
@@ -1106,21 +1105,6 @@ class CollisionWorld:
                 near.append(index)
         return tuple(near)
 
-    def environment_within(self, center: sp.Vec3, radius: float) -> bool:
-        """Whether a sphere can touch any environment object's world box
-        (``environment_near`` without the list: a test a frame of each part on the base)."""
-        self.stats["bounding_tests"] += 1
-        cx, cy, cz = center
-        limit = radius * radius
-        for fixed in self._fixed:
-            lo, hi = fixed.lo, fixed.hi
-            ex = lo[0] - cx if cx < lo[0] else (cx - hi[0] if cx > hi[0] else 0.0)
-            ey = lo[1] - cy if cy < lo[1] else (cy - hi[1] if cy > hi[1] else 0.0)
-            ez = lo[2] - cz if cz < lo[2] else (cz - hi[2] if cz > hi[2] else 0.0)
-            if ex * ex + ey * ey + ez * ez <= limit:
-                return True
-        return False
-
     def environment_near_box(self, lo: sp.Vec3, hi: sp.Vec3) -> tuple[int, ...]:
         """Indices of environment objects whose world box meets the box ``lo``-``hi``."""
         self.stats["bounding_tests"] += 1
@@ -1143,8 +1127,14 @@ class CollisionWorld:
         point = pose.apply((float(first[0]), float(first[1]), float(first[2])))
         for index in candidates:
             fixed = self._fixed[index]
-            if not fixed.closed or not all(fixed.lo[k] < point[k] < fixed.hi[k]
-                                           for k in range(3)):
+            if not all(fixed.lo[k] < point[k] < fixed.hi[k] for k in range(3)):
+                continue
+            # A solid (every edge two triangles') has an inside to be in: found the first
+            # time a part is asked to be in it, not at every start.
+            solid = self._solid.get(index)
+            if solid is None:
+                solid = self._solid[index] = closed(np.asarray(fixed.body.faces))
+            if not solid:
                 continue
             other = fixed.body
             local = other.initial_pose.inverse().apply(point)

@@ -46,7 +46,7 @@ from .scene import (LENGTH_FIELDS, PAPER_DEFAULTS, UNIT_TO_M, Scene, even_inerti
 from .session import (_DENSITY_RANGE, Session, load_schema, name_warnings, parse, strict_json,
                       validate_physics)
 from .spatial import Pose
-from .step import Stepper, beyond_end
+from .step import Stepper, beyond_end, world_box
 
 T = TypeVar("T")
 
@@ -1110,7 +1110,7 @@ def _obstacles(scene: Scene) -> list[tuple[str, list[float], list[float]]]:
     g = scene.physics.gravity
     if not (g[2] < 0.0 and abs(g[0]) + abs(g[1]) <= 1e-9 * abs(g[2])):
         return []
-    return [(body.name, *_world_box(body, body.initial_pose)) for body in _fixed_bodies(scene)]
+    return [(body.name, *world_box(body, body.initial_pose)) for body in _fixed_bodies(scene)]
 
 
 def _fixed_bodies(scene: Scene) -> list:
@@ -1563,13 +1563,6 @@ _INSIDE_BASE_M = 0.001
 # A final pose that puts its part farther than this (or than half the part's reach) from
 # the base part: not an assembled place (``scene_warnings``).
 _FINAL_CLEAR_M = 0.01
-
-
-def _world_box(body, pose) -> tuple[list[float], list[float]]:
-    """A world box around the posed body: its own box's corners, posed (so never smaller)."""
-    world = _corners(body, pose)
-    return ([min(p[k] for p in world) for k in range(3)],
-            [max(p[k] for p in world) for k in range(3)])
 
 
 def _box_gap(a: tuple[list[float], list[float]], b: tuple[list[float], list[float]]) -> float:
@@ -2177,8 +2170,8 @@ def scene_warnings(scene: Scene, collision: CollisionWorld,
                        f"({tol * 1e3:.2g} mm): it is blocked there; set contact_tolerance "
                        f"under {clear * 1e3:.2g} mm (in the session's units){or_radial}")
     # What a resting part can lie on: the environment, a fixed base, another part.
-    fixed = [_world_box(b, b.initial_pose) for b in _fixed_bodies(scene)]
-    boxes = {b.name: _world_box(b, b.initial_pose) for b in scene.parts}
+    fixed = [world_box(b, b.initial_pose) for b in _fixed_bodies(scene)]
+    boxes = {b.name: world_box(b, b.initial_pose) for b in scene.parts}
     for body in scene.parts:
         if body.initial_mode is not Mode.STATIC or len(fixed) + len(boxes) < 2:
             continue
@@ -2217,7 +2210,7 @@ def scene_warnings(scene: Scene, collision: CollisionWorld,
                        "stay so until a hand moves one")
     # A part inside a fixed base (whose start pose is known: a held one follows the hand).
     if scene.base is not None and scene.base_fixed:
-        base_box = _world_box(scene.base, scene.base.initial_pose)
+        base_box = world_box(scene.base, scene.base.initial_pose)
         for body in parts:
             if _overlap(boxes[body.name], base_box) <= _INSIDE_BASE_M:
                 continue

@@ -1616,9 +1616,9 @@ def _meet_environment(f: _Frame, before: tuple[PartState, ...]) -> None:
             + _angle_bound(p0.rotation, p1.rotation) * rho
         # A sphere about its box's centre at the frame's end, widened by that: clear of
         # every object's box, done (a part on a base held above the table: one test).
-        if not f.collision.environment_within(c1, rho + reach + tol):
+        if not f.collision.environment_near(c1, rho + reach + tol):
             continue
-        box_lo, box_hi = _world_box(body, p1)
+        box_lo, box_hi = world_box(body, p1)
         widen = reach + tol
         near = f.collision.environment_near_box(
             (box_lo[0] + lift[0] - widen, box_lo[1] + lift[1] - widen,
@@ -1704,8 +1704,8 @@ def _angle_bound(a: sp.Quat, b: sp.Quat) -> float:
 _PI_OVER_SQRT2: Final = 2.2215  # (pi / sqrt(2) = 2.22144..., rounded up)
 
 
-def _world_box(body: Body, pose: sp.Pose) -> tuple[sp.Vec3, sp.Vec3]:
-    """The world box of the part's own box, posed."""
+def world_box(body: Body, pose: sp.Pose) -> tuple[sp.Vec3, sp.Vec3]:
+    """A world box around the posed body: its own box's corners, posed (so never smaller)."""
     lo, hi = body.bbox_min, body.bbox_max
     xs, ys, zs = [], [], []
     for x in (lo[0], hi[0]):
